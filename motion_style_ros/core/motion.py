@@ -1,0 +1,119 @@
+"""A clip of skeletal motion and forward kinematics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.skeleton import Skeleton, subset as skeleton_subset
+from motion_style_ros.errors import MotionStyleError
+
+
+@dataclass(eq=False)
+class Motion:
+    """Local joint rotations and translations over time, exactly what a BVH file describes.
+
+    ``rotations`` is ``(T, J, 4)`` unit quaternions (w, x, y, z) of each joint relative to its parent;
+    ``positions`` is ``(T, J, 3)`` each joint's translation in its parent's frame (the rest offset for
+    joints without position channels; the pelvis carries the root trajectory).
+    """
+
+    skeleton: Skeleton
+    rotations: np.ndarray
+    positions: np.ndarray
+    fps: float
+
+    def __post_init__(self) -> None:
+        j = self.skeleton.n_joints
+        r, p = np.shape(self.rotations), np.shape(self.positions)
+        if len(r) != 3 or r[1:] != (j, 4) or p != (r[0], j, 3):
+            raise MotionStyleError(
+                f"motion arrays of shape {r} and {p} do not fit a {j}-joint skeleton; "
+                f"expected (T, {j}, 4) rotations and (T, {j}, 3) positions"
+            )
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise MotionStyleError(f"frame rate must be positive, got {self.fps}")
+
+    @property
+    def n_frames(self) -> int:
+        return self.rotations.shape[0]
+
+    @property
+    def duration(self) -> float:
+        return self.n_frames / self.fps
+
+    @property
+    def root_positions(self) -> np.ndarray:
+        """World position of the pelvis over time, ``(T, 3)``."""
+        return self.global_positions()[:, self.skeleton.pelvis]
+
+    def __getitem__(self, frames: slice) -> "Motion":
+        if not isinstance(frames, slice):
+            raise TypeError("index a Motion with a slice of frames")
+        return Motion(self.skeleton, self.rotations[frames], self.positions[frames], self.fps)
+
+    def check_finite(self, source: str = "motion") -> "Motion":
+        """Raise with the first bad frame if any value is NaN or infinite."""
+        bad = ~(np.isfinite(self.rotations).all(axis=(1, 2)) & np.isfinite(self.positions).all(axis=(1, 2)))
+        if bad.any():
+            raise MotionStyleError(f"{source}: non-finite values at frame {int(np.argmax(bad))}")
+        return self
+
+    def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
+        return forward_kinematics(self.skeleton, self.rotations, self.positions)
+
+    def global_positions(self) -> np.ndarray:
+        return self.global_transforms()[1]
+
+    @classmethod
+    def from_rotations(
+        cls, skeleton: Skeleton, rotations: np.ndarray, root_positions: np.ndarray, fps: float
+    ) -> "Motion":
+        """A motion whose joints keep their rest offsets and whose pelvis follows ``root_positions``.
+
+        ``root_positions`` is the pelvis translation in its parent's frame; for skeletons whose root is
+        the pelvis, that is the world position.
+        """
+        positions = np.broadcast_to(skeleton.offsets, rotations.shape[:-1] + (3,)).copy()
+        positions[:, skeleton.pelvis] = root_positions
+        return cls(skeleton, rotations, positions, fps)
+
+
+def forward_kinematics(
+    skeleton: Skeleton, rotations: np.ndarray, positions: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones."""
+    g_rot = np.empty(rotations.shape, dtype=np.float64)
+    g_pos = np.empty(positions.shape, dtype=np.float64)
+    for j, p in enumerate(skeleton.parents):
+        if p < 0:
+            g_rot[..., j, :] = rotations[..., j, :]
+            g_pos[..., j, :] = positions[..., j, :]
+        else:
+            g_rot[..., j, :] = rot.multiply(g_rot[..., p, :], rotations[..., j, :])
+            g_pos[..., j, :] = g_pos[..., p, :] + rot.rotate(g_rot[..., p, :], positions[..., j, :])
+    return g_rot, g_pos
+
+
+def local_from_global(skeleton: Skeleton, global_rotations: np.ndarray) -> np.ndarray:
+    """Local rotations from global ones (inverse of the rotation half of FK)."""
+    local = np.array(global_rotations, dtype=np.float64, copy=True)
+    for j, p in enumerate(skeleton.parents):
+        if p >= 0:
+            local[..., j, :] = rot.multiply(rot.conjugate(global_rotations[..., p, :]), global_rotations[..., j, :])
+    return local
+
+
+def subset(motion: Motion, keep: tuple[str, ...] | list[str]) -> Motion:
+    """The motion on a joint subset: kept joints keep their global rotations and positions."""
+    sub, idx = skeleton_subset(motion.skeleton, keep)
+    g_rot, g_pos = motion.global_transforms()
+    g_rot, g_pos = g_rot[:, idx], g_pos[:, idx]
+    local_rot = local_from_global(sub, g_rot)
+    local_pos = g_pos.copy()
+    for j, p in enumerate(sub.parents):
+        if p >= 0:
+            local_pos[:, j] = rot.rotate(rot.conjugate(g_rot[:, p]), g_pos[:, j] - g_pos[:, p])
+    return Motion(sub, local_rot, local_pos, motion.fps)

@@ -1,0 +1,191 @@
+"""Batched rotation maths on numpy arrays.
+
+Quaternions are ``(..., 4)`` arrays in ``(w, x, y, z)`` order (scalar first, as in ROS messages and
+BVH-tooling conventions); they rotate column vectors: ``v' = q * v * q^-1``. Every function
+broadcasts over leading axes so a whole clip ``(T, J, 4)`` is one call. Euler conversions delegate
+to SciPy, which handles every axis order and gimbal lock.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+_EPS = 1e-12
+
+
+def identity(shape: tuple[int, ...] = (), dtype=np.float64) -> np.ndarray:
+    """Identity quaternions of the given leading shape."""
+    q = np.zeros(tuple(shape) + (4,), dtype=dtype)
+    q[..., 0] = 1.0
+    return q
+
+
+def normalize(q: np.ndarray) -> np.ndarray:
+    return q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), _EPS)
+
+
+def conjugate(q: np.ndarray) -> np.ndarray:
+    """Inverse of a unit quaternion."""
+    return q * np.array([1.0, -1.0, -1.0, -1.0], dtype=q.dtype)
+
+
+inverse = conjugate
+
+
+def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a * b`` (apply ``b`` first, then ``a``)."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
+def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def to_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = np.moveaxis(normalize(q), -1, 0)
+    m = np.stack(
+        [
+            1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+        ],
+        axis=-1,
+    )
+    return m.reshape(q.shape[:-1] + (3, 3))
+
+
+def from_matrix(m: np.ndarray) -> np.ndarray:
+    """Quaternions (w >= 0) from rotation matrices ``(..., 3, 3)``."""
+    lead = m.shape[:-2]
+    xyzw = Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat()
+    q = xyzw[:, [3, 0, 1, 2]]
+    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    return q.reshape(lead + (4,))
+
+
+def from_euler(angles: np.ndarray, order: str, degrees: bool = False) -> np.ndarray:
+    """Quaternions from intrinsic Euler angles as written in BVH channel order.
+
+    ``order`` names the axes in the order the channels are listed (for example ``"ZXY"``); the
+    rotation is ``R = R_order[0] @ R_order[1] @ R_order[2]``, which is what BVH files mean.
+    """
+    order = order.upper()
+    angles = np.asarray(angles, dtype=np.float64)
+    if degrees:
+        angles = np.deg2rad(angles)
+    half = 0.5 * angles
+    out = identity(angles.shape[:-1])
+    for i, axis in enumerate(order):
+        q = np.zeros(angles.shape[:-1] + (4,))
+        q[..., 0] = np.cos(half[..., i])
+        q[..., 1 + "XYZ".index(axis)] = np.sin(half[..., i])
+        out = multiply(out, q)
+    return out
+
+
+def to_euler(q: np.ndarray, order: str, degrees: bool = False) -> np.ndarray:
+    """Intrinsic Euler angles in ``order`` (inverse of :func:`from_euler`)."""
+    lead = q.shape[:-1]
+    flat = normalize(q.reshape(-1, 4))[:, [1, 2, 3, 0]]
+    angles = Rotation.from_quat(flat).as_euler(order.upper(), degrees=degrees)
+    return angles.reshape(lead + (3,))
+
+
+def from_axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    axis = np.asarray(axis, dtype=np.float64)
+    axis = axis / np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), _EPS)
+    half = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
+    return np.concatenate([np.cos(half), np.sin(half) * axis], axis=-1)
+
+
+def from_yaw(yaw: np.ndarray) -> np.ndarray:
+    """Rotation about +Y (the up axis of the motion core)."""
+    yaw = np.asarray(yaw, dtype=np.float64)
+    return from_axis_angle(np.broadcast_to([0.0, 1.0, 0.0], yaw.shape + (3,)), yaw)
+
+
+def between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Shortest-arc rotation taking direction ``u`` onto direction ``v``."""
+    u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), _EPS)
+    v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _EPS)
+    w = 1.0 + np.sum(u * v, axis=-1, keepdims=True)
+    xyz = np.cross(u, v)
+    opposite = w[..., 0] < 1e-9
+    if np.any(opposite):  # 180 degrees: turn about any axis orthogonal to u
+        u_b = np.broadcast_to(u, xyz.shape)
+        ortho = np.cross(u_b, np.eye(3)[np.argmin(np.abs(u_b), axis=-1)])
+        xyz = np.where(opposite[..., None], ortho, xyz)
+    return normalize(np.concatenate([w, xyz], axis=-1))
+
+
+def angle(q: np.ndarray) -> np.ndarray:
+    """Rotation angle in radians, in [0, pi]."""
+    w = np.abs(normalize(q)[..., 0])
+    return 2.0 * np.arccos(np.clip(w, -1.0, 1.0))
+
+
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Geodesic angle between two rotations, in radians."""
+    return angle(multiply(conjugate(a), b))
+
+
+def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarray:
+    """Spherical interpolation along the short arc; ``t`` broadcasts over the leading axes."""
+    t = np.asarray(t, dtype=np.float64)
+    if t.ndim:
+        t = t[..., None]
+    dot = np.sum(a * b, axis=-1, keepdims=True)
+    b = np.where(dot < 0, -b, b)
+    dot = np.abs(dot)
+    theta = np.arccos(np.clip(dot, -1.0, 1.0))
+    sin = np.sin(theta)
+    near = sin < 1e-6
+    safe = np.where(near, 1.0, sin)
+    wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
+    wb = np.where(near, t, np.sin(t * theta) / safe)
+    return normalize(wa * a + wb * b)
+
+
+def make_continuous(q: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Flip signs along ``axis`` (time) so consecutive quaternions lie in the same hemisphere."""
+    q = np.moveaxis(np.array(q, copy=True), axis, 0)
+    dots = np.sum(q[1:] * q[:-1], axis=-1)
+    flips = np.cumsum(dots < 0, axis=0) % 2
+    q[1:] *= np.where(flips[..., None] == 1, -1.0, 1.0)
+    return np.moveaxis(q, 0, axis)
+
+
+def to_6d(q: np.ndarray) -> np.ndarray:
+    """Continuous 6D representation (Zhou et al. 2019): the first two matrix columns."""
+    m = to_matrix(q)
+    return np.concatenate([m[..., :, 0], m[..., :, 1]], axis=-1)
+
+
+def matrix_from_6d(d6: np.ndarray) -> np.ndarray:
+    """Gram-Schmidt back to a rotation matrix; any 6-vector with independent halves is valid."""
+    a = d6[..., :3]
+    b = d6[..., 3:6]
+    x = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), _EPS)
+    b = b - np.sum(x * b, axis=-1, keepdims=True) * x
+    y = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), _EPS)
+    z = np.cross(x, y)
+    return np.stack([x, y, z], axis=-1)
+
+
+def from_6d(d6: np.ndarray) -> np.ndarray:
+    return from_matrix(matrix_from_6d(d6))

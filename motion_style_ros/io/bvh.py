@@ -1,0 +1,267 @@
+"""BVH files: any channel order, 3 or 6 channels per joint, End Sites; lossless to file precision.
+
+:class:`BvhClip` holds the file as written (header plus the raw channel matrix), so reading and
+writing a file reproduces its numbers exactly; :meth:`BvhClip.to_motion` and
+:meth:`BvhClip.from_motion` convert to and from the motion core.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.skeleton import Skeleton
+from motion_style_ros.errors import MotionStyleError
+
+_POSITION = ("Xposition", "Yposition", "Zposition")
+_ROTATION = ("Xrotation", "Yrotation", "Zrotation")
+
+
+class BvhError(MotionStyleError):
+    """A BVH file that cannot be read; the message names the file and the problem."""
+
+
+@dataclass(eq=False)
+class BvhClip:
+    skeleton: Skeleton  # in file units
+    channels: tuple[tuple[str, ...], ...]  # per joint, as listed in the header
+    data: np.ndarray  # (T, C) channel values in header order, degrees and file units
+    frame_time: float
+
+    @property
+    def n_frames(self) -> int:
+        return self.data.shape[0]
+
+    @property
+    def fps(self) -> float:
+        """Frames per second; files store a rounded frame time (0.0333333), so snap to whole rates."""
+        fps = 1.0 / self.frame_time
+        return float(round(fps)) if abs(fps - round(fps)) < 1e-4 * fps else fps
+
+    def to_motion(self, scale: float = 1.0) -> Motion:
+        """The clip as a :class:`Motion`; ``scale`` converts file units (for example cm -> m: 0.01)."""
+        sk = self.skeleton
+        t = self.n_frames
+        rotations = np.empty((t, sk.n_joints, 4))
+        positions = np.broadcast_to(sk.offsets, (t, sk.n_joints, 3)).copy()
+        col = 0
+        for j, chans in enumerate(self.channels):
+            block = self.data[:, col : col + len(chans)]
+            col += len(chans)
+            rot_idx = [i for i, c in enumerate(chans) if c in _ROTATION]
+            if rot_idx:
+                order = "".join(chans[i][0] for i in rot_idx)
+                rotations[:, j] = rot.from_euler(block[:, rot_idx], order, degrees=True)
+            else:
+                rotations[:, j] = rot.identity()
+            for i, c in enumerate(chans):
+                if c in _POSITION:
+                    positions[:, j, _POSITION.index(c)] = block[:, i]
+        return Motion(sk.scaled(scale), rotations, positions * scale, fps=self.fps)
+
+    @classmethod
+    def from_motion(
+        cls,
+        motion: Motion,
+        scale: float = 1.0,
+        channels: tuple[tuple[str, ...], ...] | None = None,
+    ) -> "BvhClip":
+        """A clip for ``motion`` in file units (``scale`` multiplies lengths, e.g. m -> cm: 100).
+
+        Without ``channels``, the root and any joint whose translation changes get
+        ``Xposition Yposition Zposition Zrotation Yrotation Xrotation`` and the others the three
+        rotation channels.
+        """
+        sk = motion.skeleton.scaled(scale)
+        positions = motion.positions * scale
+        if channels is None:
+            moving = np.ptp(positions, axis=0).max(axis=-1) > 1e-9
+            moving |= np.abs(positions[0] - sk.offsets).max(axis=-1) > 1e-9
+            moving[0] = True
+            rot_chans = ("Zrotation", "Yrotation", "Xrotation")
+            channels = tuple(_POSITION + rot_chans if m else rot_chans for m in moving)
+        if len(channels) != sk.n_joints:
+            raise MotionStyleError(f"{len(channels)} channel lists for {sk.n_joints} joints")
+        columns = []
+        for j, chans in enumerate(channels):
+            rot_idx = [i for i, c in enumerate(chans) if c in _ROTATION]
+            euler = (
+                rot.to_euler(motion.rotations[:, j], "".join(chans[i][0] for i in rot_idx), degrees=True)
+                if rot_idx
+                else None
+            )
+            for c in chans:
+                if c in _POSITION:
+                    columns.append(positions[:, j, _POSITION.index(c)])
+                elif c in _ROTATION:
+                    columns.append(euler[:, rot_idx.index(chans.index(c))])
+                else:
+                    raise MotionStyleError(f"unknown BVH channel {c!r}")
+        data = np.stack(columns, axis=1) if columns else np.zeros((motion.n_frames, 0))
+        return cls(sk, tuple(tuple(c) for c in channels), data, 1.0 / motion.fps)
+
+
+class _Tokens:
+    def __init__(self, text: str, path: str) -> None:
+        self.words = text.split()
+        self.i = 0
+        self.path = path
+
+    def next(self, what: str) -> str:
+        if self.i >= len(self.words):
+            raise BvhError(f"{self.path}: file ends early, expected {what}")
+        w = self.words[self.i]
+        self.i += 1
+        return w
+
+    def expect(self, word: str) -> None:
+        got = self.next(repr(word))
+        if got != word:
+            raise BvhError(f"{self.path}: expected {word!r}, found {got!r}")
+
+    def number(self, what: str) -> float:
+        w = self.next(what)
+        try:
+            return float(w)
+        except ValueError:
+            raise BvhError(f"{self.path}: expected a number for {what}, found {w!r}") from None
+
+
+def read(path: str | Path) -> BvhClip:
+    """Read a BVH file; raises :class:`BvhError` naming the file and the problem."""
+    path = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError as e:
+        raise BvhError(f"{path}: cannot read ({e.strerror or e})") from None
+    head, sep, body = text.partition("MOTION")
+    if not sep:
+        raise BvhError(f"{path}: no MOTION section (not a BVH file, or truncated)")
+    tok = _Tokens(head, path)
+    tok.expect("HIERARCHY")
+    if tok.next("ROOT") != "ROOT":
+        raise BvhError(f"{path}: expected ROOT after HIERARCHY")
+
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[list[float]] = []
+    channels: list[tuple[str, ...]] = []
+    end_sites: dict[int, np.ndarray] = {}
+
+    def joint(parent: int) -> None:
+        name = tok.next("joint name")
+        j = len(names)
+        names.append(name)
+        parents.append(parent)
+        tok.expect("{")
+        tok.expect("OFFSET")
+        offsets.append([tok.number(f"OFFSET of {name}") for _ in range(3)])
+        tok.expect("CHANNELS")
+        n = tok.number(f"CHANNELS count of {name}")
+        if n not in (0, 3, 6):
+            raise BvhError(f"{path}: joint {name!r} has {n:g} channels; 0, 3 or 6 are supported")
+        chans = tuple(tok.next(f"channel of {name}") for _ in range(int(n)))
+        for c in chans:
+            if c not in _POSITION + _ROTATION:
+                raise BvhError(f"{path}: joint {name!r} has unknown channel {c!r}")
+        channels.append(chans)
+        while True:
+            w = tok.next(f"'}}' closing {name}")
+            if w == "}":
+                return
+            if w == "JOINT":
+                joint(j)
+            elif w == "End":
+                tok.expect("Site")
+                tok.expect("{")
+                tok.expect("OFFSET")
+                end_sites[j] = np.array([tok.number(f"End Site of {name}") for _ in range(3)])
+                tok.expect("}")
+            else:
+                raise BvhError(f"{path}: unexpected {w!r} inside joint {name!r}")
+
+    joint(-1)
+    if tok.i != len(tok.words):
+        raise BvhError(f"{path}: unexpected {tok.words[tok.i]!r} after the hierarchy (several ROOTs?)")
+
+    mt = _Tokens(body, path)
+    mt.expect("Frames:")
+    n_frames = mt.number("frame count")
+    mt.expect("Frame")
+    mt.expect("Time:")
+    frame_time = mt.number("frame time")
+    if n_frames < 1 or n_frames != int(n_frames):
+        raise BvhError(f"{path}: has {n_frames:g} frames; a clip needs at least one")
+    if not (np.isfinite(frame_time) and frame_time > 0):
+        raise BvhError(f"{path}: frame time must be positive, found {frame_time:g}")
+    n_channels = sum(len(c) for c in channels)
+    values = mt.words[mt.i :]
+    expected = int(n_frames) * n_channels
+    if len(values) != expected:
+        found = len(values) / max(n_channels, 1)
+        raise BvhError(
+            f"{path}: header says {int(n_frames)} frames of {n_channels} channels, "
+            f"but the file holds {found:.2f} frames ({'truncated' if len(values) < expected else 'extra values'})"
+        )
+    try:
+        data = np.array(values, dtype=np.float64).reshape(int(n_frames), n_channels)
+    except ValueError:
+        bad = next(v for v in values if not _is_number(v))
+        raise BvhError(f"{path}: motion data holds a non-number {bad!r}") from None
+    bad = ~np.isfinite(data)
+    if bad.any():
+        f, c = np.argwhere(bad)[0]
+        raise BvhError(f"{path}: non-finite value at frame {f}, channel {c}")
+
+    try:
+        skeleton = Skeleton(tuple(names), tuple(parents), np.array(offsets), end_sites)
+    except MotionStyleError as e:
+        raise BvhError(f"{path}: {e}") from None
+    return BvhClip(skeleton, tuple(channels), data, frame_time)
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+        return True
+    except ValueError:
+        return False
+
+
+def write(path: str | Path, clip: BvhClip, precision: int | None = None) -> None:
+    """Write ``clip``; numbers read from a file are written back exactly.
+
+    Without ``precision`` each value is written as the shortest text that reads back to the same
+    float; with it, motion data get that many decimals (smaller files for generated motion).
+    """
+    out = io.StringIO()
+    sk = clip.skeleton
+    out.write("HIERARCHY\n")
+
+    def num(v: float) -> str:
+        return repr(float(v)) if v != 0 else "0.0"
+
+    def joint(j: int, depth: int) -> None:
+        ind = "\t" * depth
+        out.write(f"{ind}{'ROOT' if depth == 0 else 'JOINT'} {sk.names[j]}\n{ind}{{\n")
+        out.write(f"{ind}\tOFFSET {' '.join(num(v) for v in sk.offsets[j])}\n")
+        out.write(f"{ind}\tCHANNELS {len(clip.channels[j])} {' '.join(clip.channels[j])}\n")
+        for c in sk.children(j):
+            joint(c, depth + 1)
+        if j in sk.end_sites:
+            out.write(f"{ind}\tEnd Site\n{ind}\t{{\n")
+            out.write(f"{ind}\t\tOFFSET {' '.join(num(v) for v in sk.end_sites[j])}\n{ind}\t}}\n")
+        out.write(f"{ind}}}\n")
+
+    joint(0, 0)
+    out.write(f"MOTION\nFrames: {clip.n_frames}\nFrame Time: {clip.frame_time!r}\n")
+    if precision is None:
+        out.writelines(" ".join(map(repr, row)) + "\n" for row in clip.data.tolist())
+    else:
+        np.savetxt(out, clip.data, fmt=f"%.{precision}f", delimiter=" ")
+    Path(path).write_text(out.getvalue(), encoding="utf-8")
