@@ -1,0 +1,1 @@
+"""The ``motion-style`` command line: one module per subcommand (see ``main.py``)."""

@@ -1,0 +1,75 @@
+"""Build script for motion_style_ros (ament_python: colcon, pip and `pip install -e .` use it alike)."""
+
+import os
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'motion_style_ros'
+here = os.path.dirname(os.path.abspath(__file__))
+
+
+def share_files(top):
+    """Map every file under `top`/ to share/<package>/`top`/..., keeping sub-folders.
+
+    A missing or empty folder yields nothing, so it never breaks a build.
+    """
+    entries = {}
+    for path in sorted(glob(os.path.join(top, '**', '*'), recursive=True)):
+        if os.path.isfile(path):
+            target = os.path.join('share', package_name, os.path.dirname(path))
+            entries.setdefault(target, []).append(path)
+    return sorted(entries.items())
+
+
+# setuptools wants paths relative to the project folder.
+os.chdir(here)
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    description='Restyle streaming human motion capture in ROS 2 (JointState, VMC/OSC, bags, BVH).',
+    license='Apache-2.0',
+    maintainer='motion_style_ros maintainers',
+    maintainer_email='maintainers@example.org',
+    keywords=['ROS', 'motion capture', 'style transfer'],
+    classifiers=[
+        'Intended Audience :: Developers',
+        'Intended Audience :: Science/Research',
+        'Programming Language :: Python :: 3',
+        'Topic :: Scientific/Engineering :: Artificial Intelligence',
+    ],
+    python_requires='>=3.10',
+    packages=find_packages(exclude=['test', 'test.*']),
+    package_data={package_name: ['resources/*.csv', 'resources/*.json']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        *share_files('launch'),
+        *share_files('config'),
+        *share_files('models'),
+    ],
+    # Runtime needs no torch and no ROS wheel: on a ROS install rclpy and the messages come from
+    # the distribution; elsewhere requirements-ros-wheels.txt brings them from PyPI.
+    install_requires=[
+        'numpy',
+        'scipy',
+        'onnxruntime',
+        'python-osc',
+        'rosbags',
+        'tqdm',
+        'matplotlib',
+    ],
+    extras_require={
+        # torch==2.13.0 exactly: a looser spec can pull a multi-GB CUDA build.
+        'train': ['torch==2.13.0', 'onnx'],
+        'test': ['pytest'],
+    },
+    # Package data (csv/json) and models are opened by path, so never install as a zipped egg.
+    zip_safe=False,
+    entry_points={
+        'console_scripts': [
+            'motion-style = motion_style_ros.cli.main:main',
+        ],
+    },
+)

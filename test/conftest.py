@@ -1,0 +1,29 @@
+"""Fixtures shared by the test modules. Keep it small: add a fixture here only when several
+test modules need it."""
+
+import os
+
+import pytest
+
+# ROS 2 in tests: discovery stays on the loopback interface (by default Fast DDS multicasts
+# discovery on every interface) and in a domain of this test process's own. Set at import, so
+# rclpy used in-process and every subprocess started from the tests inherit it.
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.pop("ROS_STATIC_PEERS", None)
+os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
+
+
+@pytest.fixture
+def ros_env(tmp_path):
+    """Environment for a subprocess that uses rclpy: pass it as ``subprocess.run(..., env=ros_env)``.
+
+    The ROS 2 PyPI wheels need LD_LIBRARY_PATH to point at their shared libraries;
+    ros-wheels-bootstrapper (a .pth file) sets it by re-executing Python at start-up unless
+    _ROS_WHEELS_BOOTSTRAP_COMPLETE is set. The guard is dropped here so that the child Python
+    sets it up for its own environment whatever the parent did. ROS logs go to tmp_path.
+    """
+    env = dict(os.environ)
+    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+    env["ROS_LOG_DIR"] = str(tmp_path / "ros_log")
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
