@@ -2,6 +2,8 @@
 test modules need it."""
 
 import os
+import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -27,3 +29,14 @@ def ros_env(tmp_path):
     env["ROS_LOG_DIR"] = str(tmp_path / "ros_log")
     env["PYTHONUNBUFFERED"] = "1"
     return env
+
+
+@pytest.fixture(scope="session")
+def datasets():
+    """Root of the unpacked motion datasets, as ``../shared/datasets/unpack.sh`` (run from the
+    project root) prints it; unpacks on first use, skips the test where the datasets are absent."""
+    script = Path(__file__).resolve().parents[1].parent / "shared" / "datasets" / "unpack.sh"
+    if not script.is_file():
+        pytest.skip(f"motion datasets not available ({script} not found)")
+    out = subprocess.run(["bash", str(script)], capture_output=True, text=True, check=True)
+    return Path(out.stdout.strip().splitlines()[-1])

@@ -1,0 +1,116 @@
+"""``motion-style data``: index the motion datasets, build the Bandai cache, check or rewrite the split.
+
+Datasets are read from ``$MOTION_STYLE_DATASETS`` (default ``~/.cache/motion-datasets``, where
+``../shared/datasets/unpack.sh`` puts them); the cache goes to ``$MOTION_STYLE_CACHE`` (default
+``~/.cache/motion_style_ros``). Skipped files are reported as one warning line each on stderr.
+"""
+
+DATASETS = ("bandai-1", "bandai-2", "cmu", "xia")
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "data", help="index datasets, build the Bandai cache, check the split",
+        description="Index the motion datasets, build the Bandai cache, check or rewrite the "
+                    "committed train/val/test split.",
+    )
+    actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    index = actions.add_parser("index", help="count clips per content, style and split",
+                               description="Index a dataset and print its clip counts.")
+    index.add_argument("--dataset", choices=DATASETS, action="append",
+                       help="dataset to index (repeatable; default: all)")
+    build = actions.add_parser("cache", help="build or refresh the Bandai cache, with timings",
+                               description="Parse the Bandai sets into the cache where it is "
+                                           "missing or stale, then time a load from the cache.")
+    build.add_argument("--rebuild", action="store_true", help="parse everything again")
+    split = actions.add_parser(
+        "split", help="check or regenerate the committed Bandai split",
+        description="Compare the committed bandai_split.csv with the split rule applied to the "
+                    "datasets (--check), or write it (--write). The rule is documented in "
+                    "motion_style_ros/io/datasets.py.",
+    )
+    mode = split.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--check", action="store_true", help="exit 1 if the file differs from the rule")
+    mode.add_argument("--write", action="store_true", help="rewrite the file from the rule")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    return {"index": _index, "cache": _cache, "split": _split}[args.action](args)
+
+
+def _index(args) -> int:
+    from collections import Counter
+
+    from motion_style_ros.io import datasets as ds
+
+    root = ds.datasets_root()
+    indexers = {
+        "bandai-1": lambda: ds.index_bandai(root, (1,)),
+        "bandai-2": lambda: ds.index_bandai(root, (2,)),
+        "cmu": lambda: ds.index_cmu(root),
+        "xia": lambda: ds.index_xia(root),
+    }
+    for i, name in enumerate(args.dataset or DATASETS):
+        infos = indexers[name]()
+        splits = [s for s in ds.SPLITS if any(c.split == s for c in infos)]
+        print(("\n" if i else "") + f"{name}: {len(infos)} clips under {root}")
+        totals = Counter(c.split for c in infos)
+        for field in ("content", "style"):
+            counts = Counter((getattr(c, field), c.split) for c in infos)
+            rows = [[v, *(counts[v, s] for s in splits), sum(counts[v, s] for s in splits)]
+                    for v in sorted({v for v, _ in counts})]
+            _print_table([field, *splits, "total"], rows)
+        _print_table(["all clips", *splits, "total"], [["", *(totals[s] for s in splits), len(infos)]])
+    return 0
+
+
+def _print_table(header, rows):
+    widths = [max(len(str(r[k])) for r in [header, *rows]) for k in range(len(header))]
+    widths[0] = max(widths[0], 20)
+    for r in [header, *rows]:
+        print("  ".join(str(v).ljust(w) if k == 0 else str(v).rjust(w)
+                        for k, (v, w) in enumerate(zip(r, widths))).rstrip())
+
+
+def _cache(args) -> int:
+    import time
+
+    from motion_style_ros.io import cache
+    from motion_style_ros.io import datasets as ds
+
+    for name, seconds in ds.build_cache(rebuild=args.rebuild).items():
+        state = "up to date" if seconds is None else f"parsed in {seconds:.1f} s"
+        print(f"{name}: {state} ({cache.cache_dir()})")
+    start = time.perf_counter()
+    clips = ds.load_bandai(progress=False)
+    frames = sum(m.n_frames for _, m in clips)
+    print(f"cached load: {len(clips)} clips, {frames:,} frames in {time.perf_counter() - start:.2f} s")
+    return 0
+
+
+def _split(args) -> int:
+    from collections import Counter
+
+    from motion_style_ros.io import datasets as ds
+
+    expected = ds.split_csv()
+    path = ds.split_file()
+    rows = [line.split(",") for line in expected.splitlines()[1:]]
+    counts = Counter((name.split("_")[0], split) for name, split in rows)
+    summary = ", ".join(f"{d} {s} {n}" for (d, s), n in sorted(counts.items()))
+    if args.write:
+        path.write_text(expected, encoding="utf-8")
+        print(f"wrote {path}: {len(rows)} clips ({summary})")
+        return 0
+    committed = path.read_text(encoding="utf-8") if path.is_file() else ""
+    if committed == expected:
+        print(f"{path} follows the split rule: {len(rows)} clips ({summary})")
+        return 0
+    old, new = set(committed.splitlines()), set(expected.splitlines())
+    print(f"{path} differs from the split rule applied to the datasets: "
+          f"{len(old - new)} row(s) only in the file, {len(new - old)} only in the rule; "
+          "rewrite it with 'motion-style data split --write' if the datasets really changed")
+    for line in sorted(old ^ new)[:10]:
+        print(f"  {'file' if line in old else 'rule'}: {line}")
+    return 1
