@@ -218,8 +218,17 @@ def read(path: str | Path) -> BvhClip:
         f, c = np.argwhere(bad)[0]
         raise BvhError(f"{path}: non-finite value at frame {f}, channel {c}")
 
+    # The pelvis carries the trajectory: the first joint whose position channels move (Bandai files
+    # keep a static joint_Root above the Hips).
+    pelvis, col = 0, 0
+    for j, chans in enumerate(channels):
+        pos = [col + i for i, c in enumerate(chans) if c in _POSITION]
+        if pos and np.ptp(data[:, pos], axis=0).max() > 0:
+            pelvis = j
+            break
+        col += len(chans)
     try:
-        skeleton = Skeleton(tuple(names), tuple(parents), np.array(offsets), end_sites)
+        skeleton = Skeleton(tuple(names), tuple(parents), np.array(offsets), end_sites, pelvis=pelvis)
     except MotionStyleError as e:
         raise BvhError(f"{path}: {e}") from None
     return BvhClip(skeleton, tuple(channels), data, frame_time)
