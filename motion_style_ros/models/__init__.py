@@ -1,0 +1,1 @@
+"""Networks (torch). Only models/ and training/ import torch."""

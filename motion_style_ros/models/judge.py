@@ -1,0 +1,56 @@
+"""The judges: small temporal CNNs that classify a clip's style or content from its features.
+
+They are evaluation instruments, trained on real clips only; a stylizer must never be trained
+against them (it would learn to fool the judge, and the judge would stop measuring anything).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+
+class Judge(nn.Module):
+    """Raw ``encode()`` features ``(B, T, F)`` -> ``logits (B, classes)``, ``embedding (B, E)``.
+
+    The train-set feature mean and std are buffers of the network, so the exported ONNX graph
+    takes raw features. Four Conv1d layers (kernel 5, two with stride 2, one dilated) see 33
+    frames (1.1 s at 30 fps) each; averaging over time makes the embedding independent of clip
+    length.
+    The convolutions pad by repeating edge frames, so any clip of one frame or more is accepted
+    (short clips are padded the same way); clips under a second carry little style, though.
+    """
+
+    def __init__(
+        self,
+        mean: np.ndarray,
+        std: np.ndarray,
+        n_classes: int,
+        width: int = 64,
+        embedding: int = 64,
+        dropout: float = 0.2,
+    ) -> None:
+        super().__init__()
+        n_features = len(mean)
+        self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
+        self.register_buffer("std", torch.as_tensor(std, dtype=torch.float32))
+        act = nn.LeakyReLU(0.2)
+        self.encoder = nn.Sequential(
+            nn.Dropout(dropout),
+            nn.Conv1d(n_features, width, 5, padding=2, padding_mode="replicate"),
+            act,
+            nn.Conv1d(width, width, 5, stride=2, padding=2, padding_mode="replicate"),
+            act,
+            nn.Conv1d(width, width, 5, dilation=2, padding=4, padding_mode="replicate"),
+            act,
+            nn.Conv1d(width, embedding, 5, stride=2, padding=2, padding_mode="replicate"),
+            act,
+        )
+        self.head = nn.Sequential(nn.Dropout(dropout), nn.Linear(embedding, n_classes))
+
+    def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        x = ((features - self.mean) / self.std).transpose(1, 2)
+        embedding = self.encoder(x).mean(dim=-1)
+        return self.head(embedding), embedding
+

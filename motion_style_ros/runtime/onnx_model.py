@@ -1,0 +1,70 @@
+"""A small ONNX Runtime wrapper shared by the stylizers and the judges (CPU, no torch)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from motion_style_ros.errors import MotionStyleError
+
+PACKAGE = "motion_style_ros"
+
+
+def models_dir() -> Path:
+    """The shipped ``models/`` folder: the source tree's (checkouts, editable installs) if present,
+    else ``<prefix>/share/motion_style_ros/models`` of the prefix the package is installed in
+    (``<prefix>/lib/pythonX.Y/site-packages/motion_style_ros``: pip and colcon alike)."""
+    here = Path(__file__).resolve()
+    source = here.parents[2] / "models"
+    return source if source.is_dir() else here.parents[5] / "share" / PACKAGE / "models"
+
+
+def model_path(name: str) -> Path:
+    """A shipped model's path by file name, or a path given by the user, checked to exist."""
+    path = Path(name)
+    if not path.is_file() and path.parent == Path("."):
+        path = models_dir() / name
+    if not path.is_file():
+        raise MotionStyleError(f"{path}: model file not found")
+    return path
+
+
+def read_card(model: Path) -> dict:
+    """The JSON model card next to a model (``x.onnx`` -> ``x.json``)."""
+    card = Path(model).with_suffix(".json")
+    try:
+        return json.loads(card.read_text())
+    except FileNotFoundError:
+        raise MotionStyleError(f"{card}: model card not found (it ships beside {Path(model).name})") from None
+    except json.JSONDecodeError as exc:
+        raise MotionStyleError(f"{card}: not valid JSON ({exc})") from None
+
+
+class OnnxModel:
+    """One inference session on the CPU with its input and output names."""
+
+    def __init__(self, path: str | Path, threads: int = 1) -> None:
+        import onnxruntime as ort
+
+        self.path = Path(path)
+        options = ort.SessionOptions()
+        # Sessions run beside ROS callbacks and other sessions: by default ORT would claim every core.
+        options.intra_op_num_threads = threads
+        options.inter_op_num_threads = 1
+        try:
+            self.session = ort.InferenceSession(
+                str(self.path), options, providers=["CPUExecutionProvider"]
+            )
+        except Exception as exc:  # ORT raises its own unexported exception types
+            raise MotionStyleError(f"{self.path}: cannot load ONNX model ({exc})") from None
+        self.input_names = [i.name for i in self.session.get_inputs()]
+        self.output_names = [o.name for o in self.session.get_outputs()]
+
+    def run(self, **inputs: np.ndarray) -> dict[str, np.ndarray]:
+        """Outputs by name for inputs given by name."""
+        missing = set(self.input_names) - set(inputs)
+        if missing:
+            raise MotionStyleError(f"{self.path.name}: missing inputs {', '.join(sorted(missing))}")
+        return dict(zip(self.output_names, self.session.run(self.output_names, inputs)))

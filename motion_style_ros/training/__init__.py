@@ -1,0 +1,1 @@
+"""Training loops, ONNX export and model cards (torch)."""

@@ -1,0 +1,324 @@
+"""Training of the style and content judges on real Bandai dataset-2 takes, ONNX export, model card.
+
+The judges are instruments: they are trained on real recordings only, selected on the val takes
+and scored on the held-out test takes, and then shipped frozen in ``models/``. No stylizer may use
+them as a training loss.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from tqdm import tqdm
+
+from motion_style_ros.core.features import FEATURE_VERSION, encode, feature_layout
+from motion_style_ros.io.datasets import ClipInfo, index_bandai, load_bandai
+from motion_style_ros.models.judge import Judge
+
+KINDS = ("style", "content")
+FPS = 30.0
+CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
+WINDOW, HOP = 60, 30  # window-level accuracy: 2 s windows every second
+ATTRIBUTION = (
+    'Kobayashi et al., "Motion Capture Dataset for Practical Use of AI-based Motion Editing and '
+    'Stylization", arXiv:2306.08861, 2023'
+)
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything that shapes the result; a checkpoint resumes only under the same config."""
+
+    kind: str
+    seed: int = 0
+    epochs: int = 15
+    crops_per_epoch: int = 4096
+    batch: int = 64
+    crop_frames: tuple[int, int] = (60, 120)
+    lr: float = 1e-3
+    weight_decay: float = 1e-4
+    label_smoothing: float = 0.1
+    width: int = 64
+    embedding: int = 64
+    dropout: float = 0.2
+    std_floor: float = 0.05
+
+
+@dataclass
+class Split:
+    features: list[np.ndarray]  # (T, F) per clip
+    labels: np.ndarray  # (clips,) label indices
+
+
+def encode_clips(progress: bool = True) -> list[tuple[ClipInfo, np.ndarray]]:
+    """Every Bandai dataset-2 clip with its ``encode()`` features (both judges train on them)."""
+    clips = load_bandai(index_bandai(datasets=(2,)), progress=progress)
+    return [(info, encode(m)) for info, m in tqdm(clips, desc="features", disable=not progress)]
+
+
+def make_splits(kind: str, clips: list[tuple[ClipInfo, np.ndarray]]) -> tuple[list[str], dict[str, Split]]:
+    """Labels (sorted) and the train/val/test splits for one judge."""
+    labels = sorted({getattr(info, kind) for info, _ in clips})
+    splits = {}
+    for name in ("train", "val", "test"):
+        chosen = [(info, f) for info, f in clips if info.split == name]
+        splits[name] = Split(
+            [f for _, f in chosen], np.array([labels.index(getattr(info, kind)) for info, _ in chosen])
+        )
+    return labels, splits
+
+
+def _crop(features: np.ndarray, start: int, length: int) -> np.ndarray:
+    """``length`` frames from ``start``; a shorter clip is padded by repeating its edge frames."""
+    crop = features[start : start + length]
+    missing = length - len(crop)
+    return np.pad(crop, ((missing // 2, missing - missing // 2), (0, 0)), mode="edge")
+
+
+def _batches(split: Split, cfg: Config, rng: np.random.Generator):
+    """Random crops of class-balanced random train clips, one crop length per batch."""
+    counts = np.bincount(split.labels)
+    weights = 1.0 / counts[split.labels]
+    weights /= weights.sum()
+    for _ in range(cfg.crops_per_epoch // cfg.batch):
+        length = int(rng.integers(cfg.crop_frames[0], cfg.crop_frames[1] + 1))
+        idx = rng.choice(len(split.labels), size=cfg.batch, p=weights)
+        starts = rng.integers(0, [max(len(split.features[i]) - length, 0) + 1 for i in idx])
+        crops = [_crop(split.features[i], int(s), length) for i, s in zip(idx, starts)]
+        yield torch.from_numpy(np.stack(crops)), torch.from_numpy(split.labels[idx])
+
+
+@torch.no_grad()
+def _predict(model: Judge, clips: list[np.ndarray]) -> np.ndarray:
+    """Class probabilities ``(N, classes)``, each clip classified whole."""
+    model.eval()
+    return np.concatenate(
+        [torch.softmax(model(torch.from_numpy(f)[None])[0], -1).numpy() for f in clips]
+    )
+
+
+def _windows(split: Split) -> tuple[list[np.ndarray], np.ndarray]:
+    """WINDOW-frame windows every HOP frames of each clip (a shorter clip is one window)."""
+    out, labels = [], []
+    for f, label in zip(split.features, split.labels):
+        starts = range(0, max(len(f) - WINDOW, 0) + 1, HOP)
+        out += [f[s : s + WINDOW] for s in starts]
+        labels += [label] * len(starts)
+    return out, np.array(labels)
+
+
+def _scores(model: Judge, split: Split) -> tuple[float, float]:
+    """Clip-level accuracy and mean cross-entropy."""
+    probs = _predict(model, split.features)
+    loss = -np.log(probs[np.arange(len(probs)), split.labels] + 1e-12).mean()
+    return float((probs.argmax(-1) == split.labels).mean()), float(loss)
+
+
+def _normalisation(split: Split, floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """Train-frame mean and std per feature; the floor keeps near-constant features from
+    being blown up into noise."""
+    frames = np.concatenate(split.features)
+    return frames.mean(axis=0), np.maximum(frames.std(axis=0), floor)
+
+
+def export_onnx(model: Judge, path: Path) -> None:
+    """ONNX graph on raw features with dynamic batch and time axes; outputs logits, embedding."""
+    model.eval()
+    with warnings.catch_warnings():
+        # The TorchScript exporter is deprecated in favour of the dynamo one, which needs
+        # onnxscript; this small CNN exports the same either way.
+        warnings.simplefilter("ignore", DeprecationWarning)
+        # Edge padding exports as Slice ops it cannot fold; harmless, and not the user's concern.
+        warnings.filterwarnings("ignore", message="Constant folding")
+        torch.onnx.export(
+            model,
+            (torch.zeros(1, 64, len(model.mean)),),
+            str(path),
+            input_names=["features"],
+            output_names=["logits", "embedding"],
+            dynamic_axes={
+                "features": {0: "batch", 1: "time"}, "logits": {0: "batch"}, "embedding": {0: "batch"}
+            },
+            opset_version=17,
+            dynamo=False,
+        )
+
+
+def train(
+    cfg: Config,
+    out_dir: Path,
+    clips: list[tuple[ClipInfo, np.ndarray]] | None = None,
+    checkpoints: Path = CHECKPOINTS,
+    threads: int = 2,
+    progress: bool = True,
+) -> dict:
+    """Train one judge (resuming from its checkpoint), export it to ``out_dir``; returns its card.
+
+    ``clips`` are :func:`encode_clips`' output, loaded here when not given.
+    """
+    torch.set_num_threads(threads)
+    started = time.perf_counter()
+    labels, splits = make_splits(cfg.kind, clips if clips is not None else encode_clips(progress))
+    train_split = splits["train"]
+    mean, std = _normalisation(train_split, cfg.std_floor)
+    torch.manual_seed(cfg.seed)  # initial weights
+    model = Judge(mean, std, len(labels), cfg.width, cfg.embedding, cfg.dropout)
+    optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+
+    checkpoints.mkdir(parents=True, exist_ok=True)
+    ckpt_path = checkpoints / f"judge_{cfg.kind}_seed{cfg.seed}.pt"
+    state = {"epoch": -1, "best": None, "history": [], "train_seconds": 0.0}
+    earlier = 0.0
+    if ckpt_path.exists():
+        saved = torch.load(ckpt_path, weights_only=False)
+        if saved["config"] == {**asdict(cfg), "epochs": None}:
+            model.load_state_dict(saved["model"])
+            optimizer.load_state_dict(saved["optimizer"])
+            state = saved["state"]
+            earlier = state["train_seconds"]  # spent by the runs this one resumes
+            print(f"resuming {ckpt_path} after epoch {state['epoch'] + 1}")
+        else:
+            print(f"{ckpt_path} was made with other settings; starting afresh")
+
+    for epoch in range(state["epoch"] + 1, cfg.epochs):
+        t0 = time.perf_counter()
+        # Seeded per epoch, so a resumed run follows the same path as an uninterrupted one.
+        rng = np.random.default_rng([cfg.seed, epoch])
+        torch.manual_seed(cfg.seed * 100_003 + epoch)
+        model.train()
+        losses = []
+        bar = tqdm(
+            _batches(train_split, cfg, rng),
+            total=cfg.crops_per_epoch // cfg.batch,
+            desc=f"{cfg.kind} epoch {epoch + 1}/{cfg.epochs}",
+            disable=not progress,
+        )
+        for x, y in bar:
+            logits, _ = model(x)
+            loss = F.cross_entropy(logits, y, label_smoothing=cfg.label_smoothing)
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            losses.append(loss.item())
+            bar.set_postfix(loss=f"{np.mean(losses[-20:]):.3f}")
+        val_acc, val_loss = _scores(model, splits["val"])
+        state["history"].append({
+            "epoch": epoch + 1, "train_loss": float(np.mean(losses)),
+            "val_accuracy": val_acc, "val_loss": val_loss,
+        })
+        best = state["best"]
+        if best is None or (val_acc, -val_loss) > (best["val_accuracy"], -best["val_loss"]):
+            state["best"] = {
+                "epoch": epoch + 1,
+                "val_accuracy": val_acc,
+                "val_loss": val_loss,
+                "model": {k: v.clone() for k, v in model.state_dict().items()},
+            }
+        state["epoch"] = epoch
+        state["train_seconds"] += time.perf_counter() - t0
+        print(f"{cfg.kind} epoch {epoch + 1}: loss {np.mean(losses):.3f}, val accuracy {val_acc:.3f}")
+        tmp = ckpt_path.with_suffix(".tmp")
+        torch.save(
+            {"config": {**asdict(cfg), "epochs": None}, "model": model.state_dict(),
+             "optimizer": optimizer.state_dict(), "state": state},
+            tmp,
+        )
+        tmp.replace(ckpt_path)
+
+    model.load_state_dict(state["best"]["model"])
+    out_dir.mkdir(parents=True, exist_ok=True)
+    onnx_path = out_dir / f"judge_{cfg.kind}.onnx"
+    export_onnx(model, onnx_path)
+    card = _card(cfg, model, labels, splits, state, onnx_path)
+    card["training"]["wall_time_s"] = round(earlier + time.perf_counter() - started, 1)
+    onnx_path.with_suffix(".json").write_text(json.dumps(card, indent=2) + "\n")
+    return card
+
+
+def _card(
+    cfg: Config, model: Judge, labels: list[str], splits: dict[str, Split], state: dict, onnx_path: Path
+) -> dict:
+    test = splits["test"]
+    probs = _predict(model, test.features)
+    pred = probs.argmax(-1)
+    confusion = np.zeros((len(labels), len(labels)), dtype=int)
+    np.add.at(confusion, (test.labels, pred), 1)
+    windows, window_labels = _windows(test)
+    window_pred = _predict(model, windows).argmax(-1)
+    layout = feature_layout()
+    best = state["best"]
+    crop_s = [round(n / FPS, 1) for n in cfg.crop_frames]
+    return {
+        "name": onnx_path.stem,
+        "task": f"classify the {cfg.kind} of a motion clip (an independent evaluation judge)",
+        "use": (
+            "Evaluation only: style/content recognition accuracy, FMD and content consistency of "
+            "stylizer outputs. Never use it as a training loss of a stylizer it judges."
+        ),
+        "labels": labels,
+        "inputs": {
+            "features": f"(batch, time, {layout.size}) float32: motion_style_ros.core.features.encode() "
+                        "of a canonical-skeleton motion at 30 fps, raw (normalised inside the graph)"
+        },
+        "outputs": {
+            "logits": f"(batch, {len(labels)}) unnormalised class scores, in the order of 'labels'",
+            "embedding": f"(batch, {cfg.embedding}) time-averaged features before the classifier "
+                         "(the space of FMD and content consistency)",
+        },
+        "fps": FPS,
+        "skeleton": "canonical (22 joints, Bandai Namco / Unity humanoid names, metres)",
+        "feature_version": FEATURE_VERSION,
+        "feature_layout": {k: [s.start, s.stop] for k, s in layout.slices.items()},
+        "min_frames": 1,
+        "clip_length_note": "Convolutions pad by repeating edge frames, so any length works; "
+                            f"trained on {crop_s[0]:g}-{crop_s[1]:g} s crops, clips under 1 s carry "
+                            "little style.",
+        "architecture": (
+            f"Conv1d x4 (kernel 5, LeakyReLU 0.2, width {cfg.width}; strides 1,2,1,2; dilation 2 in "
+            f"the third; replicate padding; receptive field 33 frames) -> mean over time -> "
+            f"{cfg.embedding}-d embedding -> dropout -> linear"
+        ),
+        "embedding_size": cfg.embedding,
+        "parameters": int(sum(p.numel() for p in model.parameters())),
+        "normalisation": "per-feature mean and std of all train frames (std floored at "
+                         f"{cfg.std_floor}), stored in the graph as constants",
+        "training": {
+            "data": "Bandai Namco Research Motion Dataset 2, 'train' takes; selection on 'val' "
+                    "takes; test on held-out 'test' takes (split by take, never by window)",
+            "excluded": "Dataset 1: most cells have one or two takes, too few to hold any out, "
+                        "and its styles differ from dataset 2's.",
+            "clips": {name: len(s.labels) for name, s in splits.items()},
+            "command": f"motion-style train judges --kind {cfg.kind} --epochs {cfg.epochs} "
+                       f"--seed {cfg.seed}",
+            "config": asdict(cfg),
+            "optimizer": "Adam, cross-entropy with label smoothing, class-balanced sampling of "
+                         "random crops",
+            "selected_epoch": best["epoch"],
+            "history": state["history"],
+        },
+        "accuracy": {
+            "val_clip": round(best["val_accuracy"], 4),
+            "test_clip": round(float((pred == test.labels).mean()), 4),
+            "test_window": round(float((window_pred == window_labels).mean()), 4),
+            "test_window_frames": WINDOW,
+            "test_window_hop": HOP,
+            "test_clips": len(test.labels),
+            "test_windows": len(window_labels),
+        },
+        "confusion_matrix": {
+            "split": "test, clip level",
+            "rows": "true label",
+            "columns": "predicted label",
+            "labels": labels,
+            "matrix": confusion.tolist(),
+        },
+        "licence": "CC BY-NC 4.0 (inherited from the training data): non-commercial use only",
+        "attribution": ATTRIBUTION,
+    }
