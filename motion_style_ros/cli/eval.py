@@ -12,8 +12,9 @@ def add_parser(subparsers):
                     "lengths), always beside the identity and oracle baselines. Writes "
                     "report.json and report.png and prints a table.",
     )
-    p.add_argument("--stylizer", choices=BASELINES, default="identity",
-                   help="the system under test (default: identity)")
+    p.add_argument("--stylizer", choices=BASELINES, default=None,
+                   help="highlight one system as the one under test (default: none; trained "
+                        "stylizers join this list as they land)")
     p.add_argument("--out", default="out/eval", help="output folder (default: out/eval)")
     p.add_argument("--pairs-per-cell", type=int, default=2, metavar="K",
                    help="test takes per (content, style) cell, each paired with every other "

@@ -14,6 +14,7 @@ from torch import nn
 class Judge(nn.Module):
     """Raw ``encode()`` features ``(B, T, F)`` -> ``logits (B, classes)``, ``embedding (B, E)``.
 
+    ``columns`` picks the feature blocks the judge sees (see ``training.judges.Config.inputs``).
     The train-set feature mean and std are buffers of the network, so the exported ONNX graph
     takes raw features. Four Conv1d layers (kernel 5, two with stride 2, one dilated) see 33
     frames (1.1 s at 30 fps) each; averaging over time makes the embedding independent of clip
@@ -30,11 +31,15 @@ class Judge(nn.Module):
         width: int = 64,
         embedding: int = 64,
         dropout: float = 0.2,
+        columns: np.ndarray | None = None,
     ) -> None:
         super().__init__()
-        n_features = len(mean)
+        columns = np.arange(len(mean)) if columns is None else np.asarray(columns)
+        n_features = len(columns)
         self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
         self.register_buffer("std", torch.as_tensor(std, dtype=torch.float32))
+        # Which feature columns the judge looks at (derived from the card's `inputs`, not saved).
+        self.register_buffer("columns", torch.as_tensor(columns, dtype=torch.int64), persistent=False)
         act = nn.LeakyReLU(0.2)
         self.encoder = nn.Sequential(
             nn.Dropout(dropout),
@@ -50,7 +55,7 @@ class Judge(nn.Module):
         self.head = nn.Sequential(nn.Dropout(dropout), nn.Linear(embedding, n_classes))
 
     def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        x = ((features - self.mean) / self.std).transpose(1, 2)
+        x = ((features - self.mean) / self.std).index_select(-1, self.columns).transpose(1, 2)
         embedding = self.encoder(x).mean(dim=-1)
         return self.head(embedding), embedding
 

@@ -37,6 +37,9 @@ class Config:
     """Everything that shapes the result; a checkpoint resumes only under the same config."""
 
     kind: str
+    # Feature blocks the judge sees. Joint positions and velocities, not local rotations: they
+    # mean the same on every rig, so the judges also read motions retargeted from other skeletons.
+    inputs: tuple[str, ...] = ("root", "pos", "vel", "contact")
     seed: int = 0
     epochs: int = 15
     crops_per_epoch: int = 4096
@@ -121,6 +124,15 @@ def _scores(model: Judge, split: Split) -> tuple[float, float]:
     return float((probs.argmax(-1) == split.labels).mean()), float(loss)
 
 
+def input_columns(inputs: tuple[str, ...] | list[str]) -> np.ndarray:
+    """Feature columns of the named ``feature_layout()`` blocks."""
+    slices = feature_layout().slices
+    unknown = sorted(set(inputs) - set(slices))
+    if unknown:
+        raise ValueError(f"unknown feature blocks {unknown}; allowed: {', '.join(slices)}")
+    return np.concatenate([np.arange(slices[b].start, slices[b].stop) for b in inputs])
+
+
 def _normalisation(split: Split, floor: float) -> tuple[np.ndarray, np.ndarray]:
     """Train-frame mean and std per feature; the floor keeps near-constant features from
     being blown up into noise."""
@@ -169,7 +181,7 @@ def train(
     train_split = splits["train"]
     mean, std = _normalisation(train_split, cfg.std_floor)
     torch.manual_seed(cfg.seed)  # initial weights
-    model = Judge(mean, std, len(labels), cfg.width, cfg.embedding, cfg.dropout)
+    model = Judge(mean, std, len(labels), cfg.width, cfg.embedding, cfg.dropout, input_columns(cfg.inputs))
     optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
 
     checkpoints.mkdir(parents=True, exist_ok=True)
