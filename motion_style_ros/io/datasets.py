@@ -73,7 +73,6 @@ BONE_TOLERANCE = 2e-3
 _BANDAI_NAME = re.compile(r"dataset-(\d+)_([^_]+)_([^_]+)_(\d+)")
 _CMU_NAME = re.compile(r"(\d+)_(\d+)")
 _XIA_NAME = re.compile(r"([a-z]+)_(\d+)_(\d+)")
-_NUMBER_BYTES = b"0123456789.+-eE \t\n\r\f\v"  # digits, signs, exponents, whitespace
 
 
 @dataclass(frozen=True)
@@ -158,58 +157,6 @@ def _label_problem(path: Path, dataset: int, contents: list[str], styles: list[s
     return None
 
 
-def _bvh_problem(path: Path, joints: tuple[str, ...]) -> str | None:
-    """The first problem a full parse would report, found without converting the numbers.
-
-    Checks the joint names, the frame count, non-numeric text (NaN, inf, garbage) and the number of
-    values, in about 0.2 ms per file; :func:`bvh.read` at load time re-checks everything.
-    """
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        return f"cannot read ({e.strerror or e})"
-    head, sep, body = data.partition(b"MOTION")
-    if not sep or not head.lstrip().startswith(b"HIERARCHY"):
-        return "not a BVH file (no HIERARCHY and MOTION sections), or truncated"
-    if head.count(b"{") != head.count(b"}"):
-        return "hierarchy braces do not match (malformed or truncated header)"
-    names = tuple(n.decode(errors="replace") for n in re.findall(rb"\b(?:ROOT|JOINT)\s+(\S+)", head))
-    if names != joints:
-        return f"joints {_first_difference(names, joints)}; not the expected {len(joints)}-joint skeleton"
-    m = re.match(rb"\s*Frames:\s*([0-9+-]+)\s+Frame\s+Time:\s*(\S+)", body)
-    try:
-        frames, frame_time = int(m[1]), float(m[2])
-    except (TypeError, ValueError):  # no match, or not a number
-        return "no valid 'Frames:' and 'Frame Time:' after MOTION"
-    if frames < 1:
-        return f"has {frames} frames; a clip needs at least one"
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        return f"frame time must be positive, found {frame_time:g}"
-    values = body[m.end() :].strip()
-    if values.translate(None, _NUMBER_BYTES):
-        bad = re.search(rb"\S*[^0-9.+\-eE\s]\S*", values)[0].decode(errors="replace")
-        return f"motion data holds a non-number {bad[:20]!r}"
-    n_channels = sum(int(n) for n in re.findall(rb"CHANNELS\s+(\d+)", head))
-    # One frame per line is how every writer lays BVH out: count lines, fall back to counting values.
-    lines = values.count(b"\n") + 1 if values else 0
-    if lines == frames and len(values[values.rfind(b"\n") + 1 :].split()) == n_channels:
-        return None
-    found = len(values.split()) / max(n_channels, 1)
-    if found != frames:
-        return (
-            f"header says {frames} frames of {n_channels} channels, but the file holds {found:.2f} "
-            f"frames ({'truncated' if found < frames else 'extra values'})"
-        )
-    return None
-
-
-def _first_difference(names: tuple[str, ...], expected: tuple[str, ...]) -> str:
-    i = next((i for i, (a, b) in enumerate(zip(names, expected)) if a != b), min(len(names), len(expected)))
-    found = repr(names[i]) if i < len(names) else "nothing"
-    wanted = repr(expected[i]) if i < len(expected) else "nothing"
-    return f"differ at joint {i}: {found} where {wanted} was expected"
-
-
 def _scan_bandai(base: Path, dataset: int) -> tuple[list[ClipInfo], list[str]]:
     """Clips of one Bandai set (folder ``base``), split by :func:`split_rule`, and skip messages."""
     contents = _labels(base / "cfg" / "content_label.txt", dataset)
@@ -217,7 +164,7 @@ def _scan_bandai(base: Path, dataset: int) -> tuple[list[ClipInfo], list[str]]:
     joints = canonical().names
     infos, problems = [], []
     for path in sorted(_folder(base / "data").glob("*.bvh")):
-        problem = _label_problem(path, dataset, contents, styles) or _bvh_problem(path, joints)
+        problem = _label_problem(path, dataset, contents, styles) or bvh.check(path, joints)
         if problem:
             problems.append(_skip(path, problem))
             continue
@@ -280,7 +227,7 @@ def index_cmu(root: Path | None = None) -> list[ClipInfo]:
     infos = []
     for path in sorted(_folder(base / "data").glob("*/*.bvh")):
         m = _CMU_NAME.fullmatch(path.stem)
-        problem = (None if m else "name is not <subject>_<trial>") or _bvh_problem(path, joints)
+        problem = (None if m else "name is not <subject>_<trial>") or bvh.check(path, joints)
         if problem:
             _skip(path, problem)
             continue
@@ -296,7 +243,7 @@ def index_xia(root: Path | None = None) -> list[ClipInfo]:
     infos = []
     for path in sorted(base.glob("*.bvh")):
         m = _XIA_NAME.fullmatch(path.stem)
-        problem = (None if m else "name is not <style>_<content id>_<take>") or _bvh_problem(path, joints)
+        problem = (None if m else "name is not <style>_<content id>_<take>") or bvh.check(path, joints)
         if problem:
             _skip(path, problem)
             continue
