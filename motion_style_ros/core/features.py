@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.motion import Motion, forward_kinematics
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
 
@@ -38,6 +38,8 @@ CONTACT_HEIGHT = {"Foot_L": 0.16, "Foot_R": 0.16, "Toes_L": 0.08, "Toes_R": 0.08
 CONTACT_SPEED = 0.6
 
 _ACROSS = ("UpperLeg_L", "UpperLeg_R", "UpperArm_L", "UpperArm_R")
+
+Mask = np.ndarray | slice | int | None  # which performers of a stream; None for all
 
 
 @dataclass(frozen=True)
@@ -82,24 +84,26 @@ def facing_yaw(global_positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     p = global_positions
     ul, ur, al, ar = (skeleton.index(n) for n in _ACROSS)
     across = (p[..., ul, :] - p[..., ur, :]) + (p[..., al, :] - p[..., ar, :])
-    forward = np.cross(across, UP)
+    forward = rot.cross(across, UP)
     return np.arctan2(forward[..., 0], forward[..., 2])
 
 
 def foot_contacts(global_positions: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
     """``(T, n_feet)`` 0/1 contacts: low and slow, speed by backward difference (causal)."""
+    return _contacts(global_positions, _previous(global_positions), skeleton, fps)
+
+
+def _contacts(g_pos: np.ndarray, prev_g_pos: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
     feet = list(skeleton.feet)
-    p = global_positions[:, feet]
-    speed = np.zeros(p.shape[:2])
-    speed[1:] = np.linalg.norm(p[1:] - p[:-1], axis=-1) * fps
+    p = g_pos[..., feet, :]
+    speed = np.linalg.norm(p - prev_g_pos[..., feet, :], axis=-1) * fps
     heights = np.array([CONTACT_HEIGHT.get(skeleton.names[j], 0.1) for j in feet])
     return ((p[..., 1] < heights) & (speed < CONTACT_SPEED)).astype(np.float32)
 
 
-def _backward_diff(x: np.ndarray, fps: float) -> np.ndarray:
-    d = np.zeros_like(x)
-    d[1:] = (x[1:] - x[:-1]) * fps
-    return d
+def _previous(x: np.ndarray) -> np.ndarray:
+    """Each frame's predecessor along time; frame 0 stands in for its own (zero velocity)."""
+    return np.concatenate([x[:1], x[:-1]])
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -108,36 +112,85 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
 
 def encode(motion: Motion) -> np.ndarray:
     """``(T, F)`` float32 features of a canonical-skeleton motion (see module docstring)."""
-    sk = motion.skeleton
-    _check_canonical(sk)
-    lay = feature_layout(sk)
-    joints = list(lay.joints)
+    _check_canonical(motion.skeleton)
     g_rot, g_pos = motion.global_transforms()
-    t = motion.n_frames
+    sk = motion.skeleton
+    previous = _previous(g_pos)
+    return _encode_frames(sk, feature_layout(sk), motion.rotations, g_rot, g_pos, previous, motion.fps)
 
+
+def _encode_frames(
+    sk: Skeleton,
+    lay: FeatureLayout,
+    rotations: np.ndarray,
+    g_rot: np.ndarray,
+    g_pos: np.ndarray,
+    prev_g_pos: np.ndarray,
+    fps: float,
+) -> np.ndarray:
+    """Features of frames ``(..., J)`` given the global positions of each one's previous frame.
+
+    The one implementation behind :func:`encode` (leading axis: time) and :class:`StreamEncoder`
+    (leading axis: performers).
+    """
+    joints = list(lay.joints)
     yaw = facing_yaw(g_pos, sk)
-    inv_face = rot.conjugate(rot.from_yaw(yaw))[:, None]  # (T, 1, 4)
-    pelvis = g_pos[:, sk.pelvis]
-    ground = pelvis * np.array([1.0, 0.0, 1.0])
+    inv_face = rot.conjugate(rot.from_yaw(yaw))  # (..., 4)
+    ground = g_pos[..., sk.pelvis, :] * np.array([1.0, 0.0, 1.0])
+    prev_ground = prev_g_pos[..., sk.pelvis, :] * np.array([1.0, 0.0, 1.0])
 
-    out = np.empty((t, lay.size), dtype=np.float32)
-    root_vel = rot.rotate(inv_face[:, 0], _backward_diff(ground, motion.fps))
-    yaw_rate = np.zeros(t)
-    yaw_rate[1:] = _wrap(yaw[1:] - yaw[:-1]) * motion.fps
-    out[:, lay.slices["root"]] = np.stack(
-        [root_vel[:, 0], root_vel[:, 2], pelvis[:, 1], yaw_rate], axis=-1
+    out = np.empty(yaw.shape + (lay.size,), dtype=np.float32)
+    root_vel = rot.rotate(inv_face, (ground - prev_ground) * fps)
+    yaw_rate = _wrap(yaw - facing_yaw(prev_g_pos, sk)) * fps
+    out[..., lay.slices["root"]] = np.stack(
+        [root_vel[..., 0], root_vel[..., 2], g_pos[..., sk.pelvis, 1], yaw_rate], axis=-1
     )
 
-    local = motion.rotations[:, joints].copy()
-    local[:, 0] = rot.multiply(inv_face[:, 0], g_rot[:, sk.pelvis])  # pelvis relative to facing
-    out[:, lay.slices["rot6d"]] = rot.to_6d(local).reshape(t, -1)
+    local = rotations[..., joints, :].copy()
+    local[..., 0, :] = rot.multiply(inv_face, g_rot[..., sk.pelvis, :])  # pelvis relative to facing
+    out[..., lay.slices["rot6d"]] = rot.to_6d(local).reshape(yaw.shape + (-1,))
 
-    rel = rot.rotate(inv_face, g_pos[:, joints] - ground[:, None])
-    out[:, lay.slices["pos"]] = rel.reshape(t, -1)
-    vel = rot.rotate(inv_face, _backward_diff(g_pos[:, joints], motion.fps))
-    out[:, lay.slices["vel"]] = vel.reshape(t, -1)
-    out[:, lay.slices["contact"]] = foot_contacts(g_pos, sk, motion.fps)
+    inv_face = inv_face[..., None, :]
+    rel = rot.rotate(inv_face, g_pos[..., joints, :] - ground[..., None, :])
+    out[..., lay.slices["pos"]] = rel.reshape(yaw.shape + (-1,))
+    vel = rot.rotate(inv_face, (g_pos[..., joints, :] - prev_g_pos[..., joints, :]) * fps)
+    out[..., lay.slices["vel"]] = vel.reshape(yaw.shape + (-1,))
+    out[..., lay.slices["contact"]] = _contacts(g_pos, prev_g_pos, sk, fps)
     return out
+
+
+def _decoded_size(lay: FeatureLayout) -> int:
+    return lay.slices["rot6d"].stop
+
+
+def _check_decodable(f: np.ndarray, lay: FeatureLayout, lead: str) -> None:
+    if f.ndim != 2 or f.shape[1] not in (lay.size, _decoded_size(lay)):
+        raise MotionStyleError(
+            f"features of shape {f.shape}; expected ({lead}, {lay.size}) or the root and rot6d "
+            f"blocks alone, ({lead}, {_decoded_size(lay)})"
+        )
+
+
+def _ground_step(root: np.ndarray, yaw: np.ndarray, fps: float) -> np.ndarray:
+    """Ground displacement over one frame: the facing-frame velocity turned by the frame's heading."""
+    v = np.stack([root[..., 0], np.zeros_like(root[..., 0]), root[..., 1]], axis=-1)
+    return rot.rotate(rot.from_yaw(yaw), v) / fps
+
+
+def _pose(
+    sk: Skeleton, lay: FeatureLayout, f: np.ndarray, yaw: np.ndarray, ground: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Local rotations ``(..., J, 4)`` and pelvis positions ``(..., 3)`` of decoded frames placed at
+    ``ground`` with heading ``yaw``; the one implementation behind :func:`decode` and
+    :class:`StreamDecoder`."""
+    lead = f.shape[:-1]
+    rotations = rot.identity(lead + (sk.n_joints,))
+    local = rot.from_6d(f[..., lay.slices["rot6d"]].reshape(lead + (len(lay.joints), 6)))
+    rotations[..., list(lay.joints), :] = local
+    # Joints above the pelvis (the canonical static root) stay identity at the origin.
+    rotations[..., sk.pelvis, :] = rot.multiply(rot.from_yaw(yaw), local[..., 0, :])
+    root_pos = ground + f[..., lay.slices["root"]][..., 2:3] * UP
+    return rotations, root_pos
 
 
 def decode(
@@ -149,29 +202,108 @@ def decode(
 ) -> Motion:
     """Rebuild a motion from ``root`` and ``rot6d`` features by integrating the root velocities.
 
-    Frame 0's facing frame is placed at ``start_ground`` (x, 0, z) with heading ``start_yaw``;
-    later frames integrate yaw rate first, then velocity in the new facing frame, which inverts
-    :func:`encode` exactly.
+    ``features`` is ``(T, F)``, or ``(T, 4 + 6 * joints)`` with the ``root`` and ``rot6d`` blocks
+    alone (what the stylizers output). Frame 0's facing frame is placed at ``start_ground``
+    (x, 0, z) with heading ``start_yaw``; later frames integrate yaw rate first, then velocity in
+    the new facing frame, which inverts :func:`encode` exactly.
     """
     sk = skeleton or canonical()
     lay = feature_layout(sk)
     f = np.asarray(features, dtype=np.float64)
-    if f.ndim != 2 or f.shape[1] != lay.size:
-        raise MotionStyleError(f"features of shape {f.shape}; expected (T, {lay.size})")
-    t = f.shape[0]
+    _check_decodable(f, lay, "T")
     root = f[:, lay.slices["root"]]
-    yaw = start_yaw + np.concatenate([[0.0], np.cumsum(root[1:, 3]) / fps])
-    face = rot.from_yaw(yaw)
-    step = rot.rotate(face, np.stack([root[:, 0], np.zeros(t), root[:, 1]], axis=-1)) / fps
-    step[0] = 0.0
-    ground = np.cumsum(step, axis=0)
-    if start_ground is not None:
-        ground += np.asarray(start_ground, dtype=np.float64) * np.array([1.0, 0.0, 1.0])
-
-    rotations = rot.identity((t, sk.n_joints))
-    local = rot.from_6d(f[:, lay.slices["rot6d"]].reshape(t, len(lay.joints), 6))
-    rotations[:, list(lay.joints)] = local
-    # Joints above the pelvis (the canonical static root) stay identity at the origin.
-    rotations[:, sk.pelvis] = rot.multiply(face, local[:, 0])
-    root_pos = ground + root[:, 2:3] * UP
+    # Running sums frame by frame (np.add.accumulate), exactly as StreamDecoder integrates.
+    yaw = np.cumsum(np.concatenate([[start_yaw], root[1:, 3] / fps]))
+    start = np.zeros(3) if start_ground is None else np.asarray(start_ground, dtype=np.float64)
+    steps = _ground_step(root[1:], yaw[1:], fps)
+    ground = np.cumsum(np.concatenate([start[None] * np.array([1.0, 0.0, 1.0]), steps]), axis=0)
+    rotations, root_pos = _pose(sk, lay, f, yaw, ground)
     return Motion.from_rotations(sk, rotations, root_pos, fps)
+
+
+class StreamEncoder:
+    """:func:`encode` one frame at a time for ``performers`` performers at once.
+
+    Each performer's previous frame is carried for the backward differences; a performer's first
+    frame (and its first after :meth:`reset`) has zero velocities, like frame 0 of a clip.
+    """
+
+    def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None) -> None:
+        self.skeleton = skeleton or canonical()
+        _check_canonical(self.skeleton)
+        self.fps = fps
+        self._layout = feature_layout(self.skeleton)
+        self._last = np.zeros((performers, self.skeleton.n_joints, 3))  # global positions
+        self._fresh = np.ones(performers, dtype=bool)
+
+    def reset(self, which: Mask = None) -> None:
+        """The next frame of these performers starts a new clip."""
+        self._fresh[slice(None) if which is None else which] = True
+
+    def __call__(self, rotations: np.ndarray, root_positions: np.ndarray) -> np.ndarray:
+        """``(P, F)`` float32 features of one frame: local rotations ``(P, J, 4)`` and pelvis
+        positions ``(P, 3)`` (the translation of the pelvis in its parent's frame)."""
+        sk = self.skeleton
+        positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
+        positions[:, sk.pelvis] = root_positions
+        g_rot, g_pos = forward_kinematics(sk, rotations, positions)
+        previous = np.where(self._fresh[:, None, None], g_pos, self._last)
+        out = _encode_frames(sk, self._layout, rotations, g_rot, g_pos, previous, self.fps)
+        self._last, self._fresh[:] = g_pos, False
+        return out
+
+    def facing(self) -> tuple[np.ndarray, np.ndarray]:
+        """Ground point ``(P, 3)`` (x, 0, z) and heading ``(P,)`` of each performer's last frame:
+        where a :class:`StreamDecoder` starts to follow that performer."""
+        ground = self._last[:, self.skeleton.pelvis] * np.array([1.0, 0.0, 1.0])
+        return ground, facing_yaw(self._last, self.skeleton)
+
+
+class StreamDecoder:
+    """:func:`decode` one frame at a time for ``performers`` performers at once.
+
+    Each performer's ground point and heading are integrated from the frames' root velocities,
+    starting where :meth:`start` placed it (the origin facing +Z until then).
+    """
+
+    def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None) -> None:
+        self.skeleton = skeleton or canonical()
+        self.fps = fps
+        self._layout = feature_layout(self.skeleton)
+        self._yaw = np.zeros(performers)
+        self._ground = np.zeros((performers, 3))
+        self._fresh = np.ones(performers, dtype=bool)
+
+    def start(self, ground: np.ndarray, yaw: np.ndarray, which: Mask = None) -> None:
+        """The next frame of these performers is a first frame, placed at ``ground`` (x, 0, z) with
+        heading ``yaw`` (``decode``'s ``start_ground``, ``start_yaw``). ``ground`` ``(P, 3)`` and
+        ``yaw`` ``(P,)`` hold every performer; only the selected ones are used."""
+        which = slice(None) if which is None else which
+        self._ground[which] = (np.asarray(ground, dtype=np.float64) * np.array([1.0, 0.0, 1.0]))[which]
+        self._yaw[which] = np.asarray(yaw, dtype=np.float64)[which]
+        self._fresh[which] = True
+
+    def pull(self, ground: np.ndarray, yaw: np.ndarray, gain: float) -> None:
+        """Move every performer's ground point and heading the fraction ``gain`` of the way towards
+        ``ground`` and ``yaw`` (bounds the drift of an integrated trajectory from a live one)."""
+        go = ~self._fresh
+        target = np.asarray(ground, dtype=np.float64)[go] * np.array([1.0, 0.0, 1.0])
+        self._ground[go] += gain * (target - self._ground[go])
+        self._yaw[go] += gain * _wrap(np.asarray(yaw)[go] - self._yaw[go])
+
+    def __call__(self, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Local rotations ``(P, J, 4)`` and pelvis positions ``(P, 3)`` of one frame of features
+        ``(P, F)`` (or the ``root`` and ``rot6d`` blocks alone)."""
+        lay = self._layout
+        f = np.asarray(features, dtype=np.float64)
+        _check_decodable(f, lay, str(len(self._yaw)))
+        if f.shape[0] != len(self._yaw):
+            raise MotionStyleError(
+                f"features for {f.shape[0]} performers; this decoder has {len(self._yaw)}"
+            )
+        root = f[:, lay.slices["root"]]
+        fresh = self._fresh
+        yaw = np.where(fresh, self._yaw, self._yaw + root[:, 3] / self.fps)
+        ground = np.where(fresh[:, None], self._ground, self._ground + _ground_step(root, yaw, self.fps))
+        self._yaw, self._ground, self._fresh[:] = yaw, ground, False
+        return _pose(self.skeleton, lay, f, yaw, ground)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,14 +88,26 @@ def forward_kinematics(
     """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones."""
     g_rot = np.empty(rotations.shape, dtype=np.float64)
     g_pos = np.empty(positions.shape, dtype=np.float64)
-    for j, p in enumerate(skeleton.parents):
-        if p < 0:
-            g_rot[..., j, :] = rotations[..., j, :]
-            g_pos[..., j, :] = positions[..., j, :]
-        else:
-            g_rot[..., j, :] = rot.multiply(g_rot[..., p, :], rotations[..., j, :])
-            g_pos[..., j, :] = g_pos[..., p, :] + rot.rotate(g_rot[..., p, :], positions[..., j, :])
+    g_rot[..., 0, :] = rotations[..., 0, :]
+    g_pos[..., 0, :] = positions[..., 0, :]
+    # One level of the tree at a time (all its joints in one call): few numpy calls per frame,
+    # which is what a streamed frame costs.
+    for joints, parents in _levels(skeleton.parents):
+        g_rot[..., joints, :] = rot.multiply(g_rot[..., parents, :], rotations[..., joints, :])
+        g_pos[..., joints, :] = g_pos[..., parents, :] + rot.rotate(
+            g_rot[..., parents, :], positions[..., joints, :]
+        )
     return g_rot, g_pos
+
+
+@functools.cache
+def _levels(parents: tuple[int, ...]) -> list[tuple[list[int], list[int]]]:
+    """Joints below the root grouped by depth, each level with its joints' parents."""
+    depth = [0] * len(parents)
+    for j, p in enumerate(parents[1:], start=1):
+        depth[j] = depth[p] + 1
+    levels = [[j for j in range(len(parents)) if depth[j] == d] for d in range(1, max(depth) + 1)]
+    return [(joints, [parents[j] for j in joints]) for joints in levels]
 
 
 def local_from_global(skeleton: Skeleton, global_rotations: np.ndarray) -> np.ndarray:
