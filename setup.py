@@ -70,6 +70,11 @@ setup(
     entry_points={
         'console_scripts': [
             'motion-style = motion_style_ros.cli.main:main',
+            'bvh_player = motion_style_ros.nodes.bvh_player:main',
+            'bag_player = motion_style_ros.nodes.bag_player:main',
+            'recorder = motion_style_ros.nodes.recorder:main',
+            'synthetic_performer = motion_style_ros.nodes.synthetic_performer:main',
+            'vmc_bridge = motion_style_ros.nodes.vmc_bridge:main',
         ],
     },
 )

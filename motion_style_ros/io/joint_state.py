@@ -1,0 +1,229 @@
+"""Canonical-skeleton poses as sensor_msgs/JointState vectors and back (numpy only, no ROS).
+
+The default layout (:meth:`JointStateLayout.canonical`, written out in ``config/layouts/canonical.yaml``):
+
+* ``root_tx, root_ty, root_tz``: the pelvis (``Hips``) world position in metres, REP-103 axes;
+* ``root_rx, root_ry, root_rz``: the pelvis world orientation;
+* ``<Bone>_rx, <Bone>_ry, <Bone>_rz`` for every canonical joint below ``Hips`` in skeleton order: the
+  joint's rotation relative to its parent.
+
+Frames: the motion core is Y up, facing +Z, left = +X; REP-103 is X forward, Y left, Z up. The proper
+rotation ``C`` maps core ``(x, y, z)`` to ROS ``(z, x, y)``; positions map as ``p_ros = C p_core`` and
+rotations as ``R_ros = C R_core C^T``. Angles are radians, intrinsic X-Y-Z Euler of ``R_ros``:
+``R = Rx(rx) @ Ry(ry) @ Rz(rz)``. The canonical rig's zero pose has every bone along its local X, so a
+standing pose has non-zero angles (the T-pose's local rotations); those are what a stream carries.
+
+Other layouts come from a YAML map (see :meth:`JointStateLayout.from_yaml`): each JointState name is
+one DOF of the default layout, ``value = scale * default_value + offset``, angles then wrapped to
+[-pi, pi). Decoding fills the DOFs a map leaves out from the canonical T-pose; names in a message that
+the map lacks are an error unless the map says ``unknown_names: ignore`` (a robot publishes joints a
+humanoid map has no use for). Euler angles of the rest pose sit near +-pi for some bones (the legs),
+so a consumer that differentiates angles should unwrap them first.
+"""
+
+from __future__ import annotations
+
+import functools
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.retarget import tpose
+from motion_style_ros.core.skeleton import Skeleton, canonical
+from motion_style_ros.errors import MotionStyleError
+
+AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
+# Core (x, y, z) -> ROS (z, x, y): row i of C picks the core axis that becomes ROS axis i.
+_CORE_TO_ROS = [2, 0, 1]
+_ROS_TO_CORE = [1, 2, 0]
+
+
+def _to_ros(v: np.ndarray) -> np.ndarray:
+    return v[..., _CORE_TO_ROS]
+
+
+def _to_core(v: np.ndarray) -> np.ndarray:
+    return v[..., _ROS_TO_CORE]
+
+
+def _quat_to_ros(q: np.ndarray) -> np.ndarray:
+    """Conjugation by C turns the rotation axis with C and keeps the angle."""
+    return np.concatenate([q[..., :1], _to_ros(q[..., 1:])], axis=-1)
+
+
+def _quat_to_core(q: np.ndarray) -> np.ndarray:
+    return np.concatenate([q[..., :1], _to_core(q[..., 1:])], axis=-1)
+
+
+def _euler_xyz(q: np.ndarray) -> np.ndarray:
+    with warnings.catch_warnings():  # gimbal lock: scipy still returns angles that compose back
+        warnings.simplefilter("ignore", UserWarning)
+        return rot.to_euler(q, "XYZ")
+
+
+def default_names(skeleton: Skeleton | None = None) -> list[str]:
+    """The default layout's names: root translation and orientation, then 3 angles per ball joint."""
+    skeleton = skeleton or canonical()
+    bones = skeleton.names[skeleton.pelvis + 1:]
+    return [f"root_{a}" for a in AXES] + [f"{b}_{a}" for b in bones for a in AXES[3:]]
+
+
+@functools.cache
+def _tpose_vector() -> np.ndarray:
+    skel = canonical()
+    return _encode_default(tpose(skel).local_rotations, skel.offsets[skel.pelvis])
+
+
+def _encode_default(rotations: np.ndarray, root_positions: np.ndarray) -> np.ndarray:
+    """``(..., 22, 4)`` local rotations and ``(..., 3)`` pelvis positions -> ``(..., 66)``."""
+    pelvis = canonical().pelvis
+    hips = rot.multiply(rotations[..., 0, :], rotations[..., pelvis, :])  # joint_Root is static
+    quats = np.concatenate([hips[..., None, :], rotations[..., pelvis + 1:, :]], axis=-2)
+    angles = _euler_xyz(_quat_to_ros(rot.normalize(quats)))
+    lead = angles.shape[:-2]
+    return np.concatenate([_to_ros(np.asarray(root_positions, dtype=np.float64)),
+                           angles.reshape(lead + (-1,))], axis=-1)
+
+
+def _decode_default(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    pelvis = canonical().pelvis
+    angles = values[..., 3:].reshape(values.shape[:-1] + (-1, 3))
+    quats = _quat_to_core(rot.from_euler(angles, "XYZ"))
+    rotations = rot.identity(values.shape[:-1] + (pelvis,))
+    return np.concatenate([rotations, quats], axis=-2), _to_core(values[..., :3])
+
+
+@dataclass(frozen=True)
+class _Dof:
+    name: str
+    index: int  # into the default layout
+    scale: float
+    offset: float
+
+
+class JointStateLayout:
+    """The order and meaning of JointState ``name``/``position`` entries for the canonical skeleton."""
+
+    def __init__(self, dofs: Sequence[_Dof], ignore_unknown: bool = False, source: str = "layout"):
+        self._dofs = tuple(dofs)
+        self.names: list[str] = [d.name for d in self._dofs]
+        self.ignore_unknown = ignore_unknown
+        self.source = source
+        self._index = np.array([d.index for d in self._dofs], dtype=np.intp)
+        self._scale = np.array([d.scale for d in self._dofs])
+        self._offset = np.array([d.offset for d in self._dofs])
+        self._angular = self._index >= 3
+        self._by_name = {d.name: i for i, d in enumerate(self._dofs)}
+        self._cached: tuple[tuple[str, ...], np.ndarray, np.ndarray] | None = None
+
+    @classmethod
+    def canonical(cls) -> "JointStateLayout":
+        names = default_names()
+        return cls([_Dof(n, i, 1.0, 0.0) for i, n in enumerate(names)], source="canonical layout")
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> "JointStateLayout":
+        """A layout from a YAML map::
+
+            unknown_names: error        # or ignore; optional, default error
+            joints:                     # JointState names in publishing order
+              - {name: left_knee_joint, dof: LowerLeg_L_rx, scale: -1.0, offset: 0.0}
+
+        ``dof`` is a name of the default layout; ``scale`` (non-zero) and ``offset`` are optional.
+        """
+        from ruamel.yaml import YAML, YAMLError
+
+        path = Path(path)
+
+        def bad(problem: str) -> MotionStyleError:
+            return MotionStyleError(f"{path}: {problem}")
+
+        try:
+            data = YAML(typ="safe").load(path.read_text())
+        except OSError as exc:
+            raise bad(exc.strerror or str(exc)) from None
+        except YAMLError as exc:
+            raise bad(f"not valid YAML ({' '.join(str(exc).split())})") from None
+        if not isinstance(data, dict) or not isinstance(data.get("joints"), list) or not data["joints"]:
+            raise bad("expected a mapping with a non-empty 'joints' list")
+        extra = set(data) - {"joints", "unknown_names"}
+        if extra:
+            raise bad(f"unknown keys {sorted(extra)}; allowed: joints, unknown_names")
+        unknown = data.get("unknown_names", "error")
+        if unknown not in ("error", "ignore"):
+            raise bad(f"unknown_names is {unknown!r}; allowed: error, ignore")
+        index = {n: i for i, n in enumerate(default_names())}
+        dofs, seen = [], set()
+        for k, entry in enumerate(data["joints"]):
+            where = f"joints[{k}]"
+            if not isinstance(entry, dict) or not {"name", "dof"} <= set(entry):
+                raise bad(f"{where} needs 'name' and 'dof'")
+            if set(entry) - {"name", "dof", "scale", "offset"}:
+                raise bad(f"{where} has unknown keys; allowed: name, dof, scale, offset")
+            name, dof = str(entry["name"]), entry["dof"]
+            if dof not in index:
+                raise bad(f"{where} ({name}): unknown dof {dof!r}; use a default layout name such "
+                          f"as root_tx or UpperArm_L_ry")
+            if name in seen:
+                raise bad(f"{where}: duplicate name {name!r}")
+            seen.add(name)
+            scale, offset = entry.get("scale", 1.0), entry.get("offset", 0.0)
+            if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+                       for v in (scale, offset)) or scale == 0:
+                raise bad(f"{where} ({name}): scale and offset must be finite numbers, scale non-zero")
+            dofs.append(_Dof(name, index[dof], float(scale), float(offset)))
+        return cls(dofs, ignore_unknown=unknown == "ignore", source=str(path))
+
+    def encode(self, rotations: np.ndarray, root_positions: np.ndarray) -> np.ndarray:
+        """Positions ``(..., len(names))`` from local rotations ``(..., 22, 4)`` and the pelvis
+        world position ``(..., 3)`` in the core frame."""
+        values = _encode_default(np.asarray(rotations, dtype=np.float64), root_positions)
+        out = values[..., self._index] * self._scale + self._offset
+        # An offset may push an angle past +-pi; wrap it back (decoding is 2 pi periodic anyway).
+        out[..., self._angular] = np.mod(out[..., self._angular] + np.pi, 2 * np.pi) - np.pi
+        return out
+
+    def encode_motion(self, motion) -> np.ndarray:
+        """``(T, len(names))`` for a canonical-skeleton :class:`Motion`."""
+        return self.encode(motion.rotations, motion.root_positions)
+
+    def _permutation(self, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+        key = tuple(names)
+        if self._cached is not None and self._cached[0] == key:
+            return self._cached[1], self._cached[2]
+        if len(set(key)) != len(key):
+            dup = sorted({n for n in key if key.count(n) > 1})
+            raise MotionStyleError(f"{self.source}: duplicate joint names {dup}")
+        unknown = [n for n in key if n not in self._by_name]
+        if unknown and not self.ignore_unknown:
+            raise MotionStyleError(f"{self.source}: unknown joint names {unknown[:5]}"
+                                   f"{' ...' if len(unknown) > 5 else ''}; expected {self.names[:3]} ...")
+        missing = sorted(set(self.names) - set(key), key=self._by_name.get)
+        if missing:
+            raise MotionStyleError(f"{self.source}: missing joint names {missing[:5]}"
+                                   f"{' ...' if len(missing) > 5 else ''}")
+        src = np.array([i for i, n in enumerate(key) if n in self._by_name], dtype=np.intp)
+        dst = np.array([self._by_name[key[i]] for i in src], dtype=np.intp)
+        self._cached = (key, src, dst)
+        return src, dst
+
+    def decode(self, names: Sequence[str],
+               positions: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+        """Local rotations ``(22, 4)`` (``joint_Root`` identity, ``Hips`` the pelvis world orientation)
+        and the pelvis position ``(3,)`` in the core frame, from one JointState's name/position."""
+        values = np.asarray(positions, dtype=np.float64)
+        if values.ndim != 1 or len(names) != values.shape[0]:
+            raise MotionStyleError(f"{self.source}: {len(names)} names but {values.size} positions")
+        if not np.isfinite(values).all():
+            bad = [names[i] for i in np.flatnonzero(~np.isfinite(values))[:5]]
+            raise MotionStyleError(f"{self.source}: non-finite positions for {bad}")
+        src, dst = self._permutation(names)
+        ordered = np.empty(len(self.names))
+        ordered[dst] = values[src]
+        full = _tpose_vector().copy()
+        full[self._index] = (ordered - self._offset) / self._scale
+        return _decode_default(full)

@@ -1,0 +1,67 @@
+"""ROS 2 nodes (the only layer that imports rclpy and message packages): thin shells over io/ and core/.
+
+Every node's ``main`` goes through :func:`run`, so a node that cannot start (bad file, bad
+parameter) logs one error line and exits with status 2, and Ctrl-C ends it cleanly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.task import Future
+from sensor_msgs.msg import JointState
+
+from motion_style_ros.errors import MotionStyleError
+
+
+class PlayerNode(Node):
+    """A node that may finish on its own: ``done`` completes when it has nothing more to do."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.done = Future()
+
+    def param(self, name: str, default, description: str, low: float | None = None,
+              high: float | None = None):
+        """Declare a read-only parameter (nodes read them at start) and return its value."""
+        descriptor = ParameterDescriptor(description=description, read_only=True)
+        if low is not None and isinstance(default, int) and not isinstance(default, bool):
+            descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+        elif low is not None:
+            descriptor.floating_point_range = [FloatingPointRange(from_value=float(low),
+                                                                  to_value=float(high))]
+        return self.declare_parameter(name, default, descriptor).value
+
+
+def joint_state(names: Sequence[str], positions: np.ndarray, stamp, frame_id: str = "") -> JointState:
+    msg = JointState(name=list(names), position=positions.tolist())
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    return msg
+
+
+def run(make_node: Callable[[], PlayerNode], name: str, args=None) -> int:
+    """Init, build the node (``name`` is its default node name, for the log before it exists), spin
+    until it is done or interrupted; 2 when it cannot start."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = make_node()
+        rclpy.spin_until_future_complete(node, node.done)
+    except (MotionStyleError, ParameterException) as exc:
+        message = " ".join(str(exc).split())
+        (node.get_logger() if node else rclpy.logging.get_logger(name)).error(message)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

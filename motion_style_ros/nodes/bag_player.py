@@ -1,0 +1,78 @@
+"""``bag_player``: play the JointState messages of a rosbag2 bag with their recorded timing.
+
+For machines without the ``ros2`` CLI (``ros2 bag play`` does the same elsewhere). Messages are
+republished as recorded (serialised bytes, so header.stamp is kept); the gaps between them follow the
+recording's log times divided by ``rate``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io.bags import read_raw
+from motion_style_ros.nodes import PlayerNode, run
+
+NAME = "bag_player"
+
+
+class BagPlayer(PlayerNode):
+    def __init__(self) -> None:
+        super().__init__(NAME)
+        bag = self.param("bag", "", "rosbag2 folder or .mcap file with sensor_msgs/JointState")
+        self.rate = self.param("rate", 1.0, "playback speed factor", 0.01, 100.0)
+        self.loop = self.param("loop", False, "start over at the end instead of exiting")
+        topic = self.param("topic", "", "publish every message on this topic; "
+                                        "empty: each on its recorded topic")
+        self.wait = self.param("wait_for_subscribers", 0, "hold playback until this many subscribers "
+                               "are matched on every topic (start the consumers first)", 0, 1000)
+        if not bag:
+            raise MotionStyleError("parameter bag is empty; give a bag: --ros-args -p bag:=my_bag")
+        self.messages = list(read_raw(bag))
+        topics = sorted({t for t, _, _ in self.messages})
+        self.publishers_by_topic = {
+            t: self.create_publisher(JointState, topic or t, qos_profile_sensor_data) for t in topics}
+        log = np.array([t for _, t, _ in self.messages], dtype=np.int64)
+        self.offsets = (log - log[0]) / self.rate  # ns after the start of a pass
+        gaps = np.diff(log)
+        # A loop restarts one typical gap (1 s for a lone message) after the last message.
+        typical = float(np.median(gaps)) if len(gaps) else 1e9
+        self.pass_ns = self.offsets[-1] + max(typical, 1e6) / self.rate
+        self.index = 0
+        self.start = time.monotonic_ns()
+        self.timer = self.create_timer(1e-3, self._tick)
+        self.get_logger().info(f"playing {len(self.messages)} messages from {bag} ({', '.join(topics)}) "
+                               f"x {self.rate:g}")
+
+    def _tick(self) -> None:
+        now = time.monotonic_ns()
+        if self.wait:
+            if min(p.get_subscription_count() for p in self.publishers_by_topic.values()) < self.wait:
+                return
+            self.wait, self.start = 0, now
+        while now - self.start >= self.offsets[self.index]:
+            topic, _, data = self.messages[self.index]
+            self.publishers_by_topic[topic].publish(data)
+            self.index += 1
+            if self.index == len(self.messages):
+                if not self.loop:
+                    self.timer.cancel()
+                    self.done.set_result(True)
+                    return
+                self.index = 0
+                self.start += int(self.pass_ns)
+        self.timer.timer_period_ns = max(int(self.start + self.offsets[self.index] - now), 100_000)
+        self.timer.reset()
+
+
+def main(args=None) -> int:
+    return run(BagPlayer, NAME, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,68 @@
+"""``bvh_player``: play a humanoid BVH file as JointState on the canonical skeleton, in real time."""
+
+from __future__ import annotations
+
+import sys
+
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+
+from motion_style_ros.core.retarget import Retargeter, find_map
+from motion_style_ros.core.skeleton import canonical
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import bvh
+from motion_style_ros.io.joint_state import JointStateLayout
+from motion_style_ros.nodes import PlayerNode, joint_state, run
+
+NAME = "bvh_player"
+
+
+def load(path: str, layout: JointStateLayout):
+    """``(frames (T, len(names)), fps)`` of a BVH file retargeted to the canonical skeleton."""
+    if not path:
+        raise MotionStyleError("parameter file is empty; give a BVH file: --ros-args -p file:=take.bvh")
+    source = bvh.read(path).to_motion()
+    motion = Retargeter(source.skeleton, canonical(), find_map(source.skeleton, path))(source)
+    return layout.encode_motion(motion.check_finite(path)), motion.fps
+
+
+class BvhPlayer(PlayerNode):
+    def __init__(self) -> None:
+        super().__init__(NAME)
+        path = self.param("file", "", "BVH file of a humanoid (canonical, CMU or Unity joint names)")
+        rate = self.param("rate", 1.0, "playback speed factor", 0.01, 100.0)
+        self.loop = self.param("loop", False, "start over at the end instead of exiting")
+        topic = self.param("topic", "joint_states", "JointState topic to publish on")
+        self.frame_id = self.param("frame_id", "", "header.frame_id of the messages")
+        self.wait = self.param("wait_for_subscribers", 0, "hold playback until this many subscribers "
+                               "are matched (start the consumers first, miss no frame)", 0, 1000)
+        layout = self.param("layout", "",
+                            "JointState layout YAML (config/layouts/); empty: canonical")
+        self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
+        self.frames, fps = load(path, self.layout)
+        self.index = 0
+        self.publisher = self.create_publisher(JointState, topic, qos_profile_sensor_data)
+        self.create_timer(1.0 / (fps * rate), self._tick)
+        self.get_logger().info(f"playing {path}: {len(self.frames)} frames at {fps:g} fps x {rate:g} "
+                               f"on {self.publisher.topic_name}")
+
+    def _tick(self) -> None:
+        if self.index == 0 and self.publisher.get_subscription_count() < self.wait:
+            return
+        self.wait = 0
+        if self.index == len(self.frames):
+            if not self.loop:
+                self.done.set_result(True)
+                return
+            self.index = 0
+        self.publisher.publish(joint_state(self.layout.names, self.frames[self.index],
+                                           self.get_clock().now().to_msg(), self.frame_id))
+        self.index += 1
+
+
+def main(args=None) -> int:
+    return run(BvhPlayer, NAME, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,61 @@
+"""``recorder``: record JointState topics to a rosbag2 MCAP bag (``ros2 bag record`` elsewhere).
+
+Messages are stored as received (serialised CDR) with their arrival time as log time; the bag is
+finalised when the node stops (Ctrl-C / SIGINT), so ``ros2 bag play`` and the bag player accept it.
+"""
+
+from __future__ import annotations
+
+import sys
+from datetime import datetime
+
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io.bags import BagWriter
+from motion_style_ros.nodes import PlayerNode, run
+
+NAME = "recorder"
+RELIABILITY = ("best_effort", "reliable")
+
+
+class Recorder(PlayerNode):
+    def __init__(self) -> None:
+        super().__init__(NAME)
+        topics = self.param("topics", ["joint_states"], "JointState topics to record")
+        bag = self.param("bag", "", "bag folder to create; empty: rosbag2_<date>_<time>")
+        reliability = self.param("reliability", "best_effort",
+                                 "QoS reliability of the subscriptions: best_effort (matches every "
+                                 "publisher) or reliable (no drops; only reliable publishers)")
+        if reliability not in RELIABILITY:
+            raise MotionStyleError(f"parameter reliability is {reliability!r}; choose one of "
+                                   f"{', '.join(RELIABILITY)}")
+        if not topics or not all(topics):
+            raise MotionStyleError("parameter topics is empty; give topic names, e.g. ['joint_states']")
+        # A deep queue so that bursts are not dropped while the bag writes.
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT
+                         if reliability == "best_effort" else ReliabilityPolicy.RELIABLE)
+        self.writer = BagWriter(bag or datetime.now().strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
+        for topic in topics:
+            resolved = self.resolve_topic_name(topic)
+            self.create_subscription(JointState, topic, lambda data, t=resolved: self._record(t, data),
+                                     qos, raw=True)
+            self.get_logger().info(f"recording {resolved} to {self.writer.path}")
+
+    def _record(self, topic: str, data: bytes) -> None:
+        self.writer.write_raw(topic, self.get_clock().now().nanoseconds, data)
+
+    def destroy_node(self) -> None:
+        if hasattr(self, "writer"):
+            self.writer.close()
+            self.get_logger().info(f"wrote {self.writer.count} messages to {self.writer.path}")
+        super().destroy_node()
+
+
+def main(args=None) -> int:
+    return run(Recorder, NAME, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
