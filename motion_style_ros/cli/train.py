@@ -23,20 +23,50 @@ def add_parser(subparsers):
     judges.add_argument("--out", default=None,
                         help="folder for the ONNX files and cards (default: the shipped models/)")
     judges.set_defaults(func=run_judges)
+    recurrent = targets.add_parser(
+        "recurrent", help="the Style-ERD online stylizer (models/style_erd.onnx)",
+        description="Train the Style-ERD generator with its FT-Att discriminator and content network "
+                    "on Bandai dataset-2 train takes, then export the streaming step to ONNX with "
+                    "its model card. Checkpoints every few minutes to "
+                    "~/.cache/motion_style_ros/checkpoints/recurrent_<seed>/ (with losses.jsonl); "
+                    "--resume continues a stopped run, and the time and iteration budgets count "
+                    "over all resumed runs, so the same command finishes the job.",
+    )
+    recurrent.add_argument("--minutes", type=float, default=110.0,
+                           help="training time budget in minutes, over all resumed runs (default: 110)")
+    recurrent.add_argument("--iterations", type=int, default=None,
+                           help="stop after this many iterations in total (default: no limit)")
+    recurrent.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    recurrent.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
+    recurrent.add_argument("--resume", action="store_true",
+                           help="continue from the checkpoint of this seed if there is one "
+                                "(without it, an earlier run's checkpoint is discarded)")
+    recurrent.add_argument("--out", default=None,
+                           help="folder for style_erd.onnx and its card (default: the shipped models/)")
+    recurrent.set_defaults(func=run_recurrent)
+
+
+def _training(module: str):
+    """``motion_style_ros.training.<module>``, or a clear error where torch is missing."""
+    import importlib
+
+    from motion_style_ros.errors import MotionStyleError
+
+    try:
+        return importlib.import_module(f"motion_style_ros.training.{module}")
+    except ModuleNotFoundError as exc:
+        if exc.name != "torch":
+            raise
+        raise MotionStyleError("training needs torch: pip install '.[train]'") from None
 
 
 def run_judges(args) -> int:
     from pathlib import Path
 
     from motion_style_ros.errors import MotionStyleError
-
-    try:
-        from motion_style_ros.training import judges
-    except ModuleNotFoundError as exc:
-        if exc.name != "torch":
-            raise
-        raise MotionStyleError("training needs torch: pip install '.[train]'") from None
     from motion_style_ros.runtime.onnx_model import models_dir
+
+    judges = _training("judges")
 
     if args.epochs < 1:
         raise MotionStyleError(f"--epochs must be at least 1, got {args.epochs}")
@@ -50,4 +80,26 @@ def run_judges(args) -> int:
               f"({acc['test_clips']} clips), {acc['test_window']:.3f} per {acc['test_window_frames']}-frame "
               f"window; val {acc['val_clip']:.3f}; {card['training']['wall_time_s']:.0f} s "
               f"-> {out / card['name']}.onnx")
+    return 0
+
+
+def run_recurrent(args) -> int:
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.onnx_model import models_dir
+
+    recurrent = _training("recurrent")
+    if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
+        raise MotionStyleError("--minutes must be positive and --iterations at least 1")
+    out = Path(args.out) if args.out else models_dir()
+    command = f"motion-style train recurrent --minutes {args.minutes:g} --seed {args.seed}" + (
+        f" --iterations {args.iterations}" if args.iterations is not None else "")
+    card = recurrent.train(recurrent.Config(seed=args.seed), out, args.minutes, args.iterations,
+                           args.resume, threads=args.threads, command=command + " --resume")
+    history = card["training"]["history"]
+    val = history["val"][-1]
+    print(f"style_erd: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
+          f"val reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS); "
+          f"ONNX vs torch {card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
     return 0

@@ -1,0 +1,279 @@
+"""The streaming stylizer: one canonical-skeleton frame per performer in, one stylized frame out.
+
+A :class:`RecurrentSession` wraps a recurrent ONNX stylizer (the Style-ERD contract: raw
+``encode()`` features, style weights, alpha, the LSTM state and a reset flag in; the stylized
+``[root | rot6d]`` blocks and the next state out) and carries everything a live stream needs
+between calls:
+
+- **Rates.** The model runs on its own clock (``fps``, 30 Hz) with one ONNX call per model frame
+  for all performers together. Each model frame's input is interpolated between the two input
+  frames around its time (slerp, lerp), so nothing waits for a future frame. Each input frame
+  gets an output: the model's frames interpolated at ``stamp - latency`` with
+  ``latency = 1 / fps - 1 / input_fps`` (0 for 30 Hz input, 25 ms for 120 Hz), so the output
+  comes at the input's rate, evenly spaced and smooth; at rates that are not multiples of the
+  model's, an output whose time is past the newest model frame holds it. Latency never exceeds
+  one model frame.
+- **Gaps and restarts.** A stamp more than ``gap_seconds`` after the previous one, or earlier
+  than it, restarts the stream: every performer starts afresh on the next frame.
+- **Trajectory.** The model outputs the root's velocity and yaw rate in the facing frame; they are
+  integrated (:class:`~motion_style_ros.core.features.StreamDecoder`) from where the performer
+  stood and faced on its first frame (and after every reset, which snaps it back there), so the
+  stylized root moves with its own speed and turns. It drifts from the input's trajectory (a
+  slower style falls behind); with ``follow_seconds`` set, the integrated ground point and heading
+  are pulled towards the input's with that time constant instead, which bounds the drift (the
+  stylized avatar keeps up with its performer on average).
+- **Controls.** Style, alpha and a second style with a mix weight change between any two
+  frames and blend over ``blend_seconds`` (:mod:`motion_style_ros.runtime.controls`).
+- **Bad input.** A frame with the wrong shape or dtype, NaN/Inf or non-unit quaternions raises
+  :class:`MotionStyleError` before anything changes: the next good frame continues as if the
+  bad one never came. Quaternions within 10 % of unit length are normalised.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.features import FEATURE_VERSION, StreamDecoder, StreamEncoder
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.skeleton import canonical
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime.controls import Controls
+from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
+
+INPUTS = ("features", "style", "alpha", "state", "reset")
+QUATERNION_TOLERANCE = 0.1  # |norm - 1| above this is rejected, below it normalised
+STAMP_TOLERANCE = 1e-6  # s: a model frame this close to an input frame takes that frame as it is
+
+
+class RecurrentSession:
+    """A recurrent stylizer over a stream of ``performers`` performers (see the module docstring).
+
+    ``model``: a shipped model's file name or a path (the card beside it); ``input_fps``: the
+    stream's nominal rate (default: the model's), which sets the output latency; ``threads``:
+    ONNX Runtime threads. Until :meth:`set_style`, every performer gets the model's neutral style
+    (its card's ``neutral_style``) at alpha 1.
+    """
+
+    def __init__(
+        self,
+        model: str | Path = "style_erd.onnx",
+        performers: int = 1,
+        input_fps: float | None = None,
+        blend_seconds: float = 0.3,
+        threads: int = 1,
+        gap_seconds: float = 0.5,
+        follow_seconds: float | None = None,
+    ) -> None:
+        path = model_path(str(model))
+        card = read_card(path)
+        _check_card(card, path)
+        if not (isinstance(performers, (int, np.integer)) and performers >= 1):
+            raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
+        self.model = OnnxModel(path, threads)
+        missing = set(INPUTS) - set(self.model.input_names)
+        if missing:
+            raise MotionStyleError(
+                f"{path}: not a recurrent stylizer (no inputs {', '.join(sorted(missing))})"
+            )
+        self.card = card
+        self.styles: list[str] = list(card["styles"])
+        self.fps = float(card["fps"])
+        self.performers = int(performers)
+        self.input_fps = self.fps if input_fps is None else _positive(input_fps, "input frame rate")
+        self.latency = max(0.0, 1.0 / self.fps - 1.0 / self.input_fps)
+        self.gap_seconds = _positive(gap_seconds, "gap time")
+        self._follow_gain = (
+            0.0 if follow_seconds is None
+            else 1.0 - np.exp(-1.0 / (self.fps * _positive(follow_seconds, "follow time")))
+        )
+        self.skeleton = canonical()
+        neutral = card.get("neutral_style", self.styles[0])
+        self._controls = Controls(self.styles, self.performers, neutral, blend_seconds)
+        self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
+        self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
+        self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
+        self._fresh = np.ones(self.performers, dtype=bool)
+        self._restart()
+
+    # --- controls ---------------------------------------------------------------------------
+
+    def set_style(self, style: str, performer: int | None = None) -> None:
+        """Target style of one performer or all (``None``), blended in over ``blend_seconds``."""
+        self._controls.set_style(style, performer)
+
+    def set_alpha(self, alpha: float, performer: int | None = None) -> None:
+        """Strength of the style in [0, 1]; 0 is the model's neutral branch alone."""
+        self._controls.set_alpha(alpha, performer)
+
+    def set_mix(self, style: str | None, weight: float, performer: int | None = None) -> None:
+        """Mix a second style in with ``weight`` in [0, 1]; ``None`` removes it."""
+        self._controls.set_mix(style, weight, performer)
+
+    def reset(self, performer: int | None = None) -> None:
+        """Start one performer or all afresh at their next frame: learned initial state, the
+        stylized root snapped back to the input's, controls at their targets."""
+        which = self._controls.which(performer)
+        self._fresh[which] = True
+        self._encoder.reset(which)
+
+    # --- streaming ----------------------------------------------------------------------------
+
+    def step(
+        self, rotations: np.ndarray, root_positions: np.ndarray, stamp: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The stylized frame of every performer for one input frame.
+
+        ``rotations`` ``(P, 22, 4)`` local quaternions (w, x, y, z) of the canonical skeleton,
+        ``root_positions`` ``(P, 3)`` pelvis positions in metres (for one performer, ``(22, 4)``
+        and ``(3,)`` work too); ``stamp`` in seconds (default: ``1 / input_fps`` after the
+        previous frame). Returns the same shapes, float64.
+        """
+        q, p, single = self._check_frame(rotations, root_positions)
+        stamp = self._check_stamp(stamp)
+        if self._stamp is not None and not (0.0 <= stamp - self._stamp <= self.gap_seconds):
+            self._restart()
+        if self._stamp is None:
+            self._origin = stamp
+            self.reset()
+        while (t := self._origin + self._ticks / self.fps) <= stamp + STAMP_TOLERANCE:
+            if self._stamp is None or t >= stamp - STAMP_TOLERANCE:
+                frame = q, p
+            else:
+                w = np.clip((t - self._stamp) / (stamp - self._stamp), 0.0, 1.0)
+                frame = rot.slerp(self._input[0], q, w), self._input[1] + w * (p - self._input[1])
+            self._tick(t, *frame)
+            self._ticks += 1
+        self._stamp, self._input = stamp, (q, p)
+        out_q, out_p = self._output(stamp - self.latency)
+        return (out_q[0], out_p[0]) if single else (out_q, out_p)
+
+    def run(self, motion: Motion, style: str, alpha: float = 1.0) -> Motion:
+        """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``)."""
+        if self.performers != 1:
+            raise MotionStyleError(
+                f"run() stylizes one clip; this session has {self.performers} performers"
+            )
+        if motion.fps != self.input_fps:
+            raise MotionStyleError(
+                f"clip at {motion.fps:g} fps; this session takes {self.input_fps:g} fps input "
+                f"(make the session with input_fps={motion.fps:g} or resample the clip)"
+            )
+        if motion.skeleton.names != self.skeleton.names:
+            raise MotionStyleError("run() needs a canonical-skeleton clip (retarget it first)")
+        self.set_style(style)
+        self.set_alpha(alpha)
+        self.set_mix(None, 0.0)
+        self._restart()
+        roots = motion.positions[:, self.skeleton.pelvis]
+        frames = [self.step(motion.rotations[t : t + 1], roots[t : t + 1], t / motion.fps)
+                  for t in range(motion.n_frames)]
+        rotations = np.concatenate([q for q, _ in frames])
+        positions = np.concatenate([p for _, p in frames])
+        return Motion.from_rotations(self.skeleton, rotations, positions, motion.fps)
+
+    # --- internals ----------------------------------------------------------------------------
+
+    def _restart(self) -> None:
+        """Forget the stream's clock and outputs: the next frame starts it again."""
+        self._stamp: float | None = None
+        self._origin, self._ticks = 0.0, 0  # model frame k is at stream time origin + k / fps
+        self._input: tuple[np.ndarray, np.ndarray] | None = None
+        self._outputs: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last two model frames
+
+    def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
+        """One model frame for all performers at stream time ``t``."""
+        features = self._encoder(q, p)
+        fresh = self._fresh.copy()
+        if fresh.any():
+            self._decoder.start(*self._encoder.facing(), which=fresh)
+            self._controls.snap(fresh)
+        style, alpha = self._controls.advance(1.0 / self.fps)
+        out = self.model.run(
+            features=features, style=style, alpha=alpha, state=self._state,
+            reset=fresh[:, None].astype(np.float32),
+        )
+        self._state = out["state_out"]
+        self._fresh[:] = False
+        frame = self._decoder(out["output"])
+        if self._follow_gain:
+            self._decoder.pull(*self._encoder.facing(), self._follow_gain)
+        self._outputs = [*self._outputs[-1:], (t, *frame)]
+
+    def _output(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The model's output at stream time ``t``, between its last two frames (held outside)."""
+        t1, q1, p1 = self._outputs[-1]
+        if len(self._outputs) == 1 or t >= t1 - STAMP_TOLERANCE:
+            return q1.copy(), p1.copy()  # the caller may write into what it gets
+        t0, q0, p0 = self._outputs[0]
+        w = max(0.0, (t - t0) / (t1 - t0))
+        return rot.slerp(q0, q1, w), p0 + w * (p1 - p0)
+
+    def _check_stamp(self, stamp: float | None) -> float:
+        if stamp is None:
+            return 0.0 if self._stamp is None else self._stamp + 1.0 / self.input_fps
+        try:
+            value = float(stamp)
+        except (TypeError, ValueError):
+            raise MotionStyleError(f"stamp must be a number of seconds, got {stamp!r}") from None
+        if not np.isfinite(value):
+            raise MotionStyleError(f"stamp must be finite, got {value}")
+        return value
+
+    def _check_frame(self, rotations, root_positions) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Float64 ``(P, J, 4)`` unit quaternions and ``(P, 3)`` positions, or an error."""
+        q, p = np.asarray(rotations), np.asarray(root_positions)
+        for what, a in (("rotations", q), ("root positions", p)):
+            if a.dtype.kind != "f":
+                raise MotionStyleError(f"{what} of dtype {a.dtype}; expected floating-point numbers")
+        single = self.performers == 1 and q.ndim == 2 and p.ndim == 1
+        if single:
+            q, p = q[None], p[None]
+        n, j = self.performers, self.skeleton.n_joints
+        if q.shape != (n, j, 4) or p.shape != (n, 3):
+            raise MotionStyleError(
+                f"rotations of shape {np.shape(rotations)} and root positions of shape "
+                f"{np.shape(root_positions)}; expected ({n}, {j}, 4) local quaternions (w, x, y, z) "
+                f"of the canonical skeleton's {j} joints and ({n}, 3) pelvis positions"
+            )
+        bad = ~(np.isfinite(q).all(axis=(1, 2)) & np.isfinite(p).all(axis=1))
+        if bad.any():
+            raise MotionStyleError(
+                f"performer {int(np.argmax(bad))}: NaN or infinite values in the frame"
+            )
+        q, p = q.astype(np.float64), p.astype(np.float64)
+        norm = np.linalg.norm(q, axis=-1)
+        off = np.abs(norm - 1.0) > QUATERNION_TOLERANCE
+        if off.any():
+            k, joint = np.argwhere(off)[0]
+            raise MotionStyleError(
+                f"performer {k}: rotation of {self.skeleton.names[joint]} has norm "
+                f"{norm[k, joint]:.3g}; expected unit quaternions (w, x, y, z)"
+            )
+        return q / norm[..., None], p, single
+
+
+def _positive(value: float, what: str) -> float:
+    if not (isinstance(value, (int, float, np.number)) and np.isfinite(value) and value > 0):
+        raise MotionStyleError(f"{what} must be a positive number, got {value!r}")
+    return float(value)
+
+
+def _check_card(card: dict, path: Path) -> None:
+    """The card describes a recurrent stylizer on the features this package computes."""
+    missing = [k for k in ("kind", "styles", "fps", "state_size", "feature_version") if k not in card]
+    if missing:
+        raise MotionStyleError(f"{path.with_suffix('.json')}: model card lacks {', '.join(missing)}")
+    if card["kind"] != "recurrent":
+        raise MotionStyleError(f"{path}: a {card['kind']!r} model, not a recurrent stylizer")
+    if card.get("skeleton", "canonical") != "canonical":
+        raise MotionStyleError(
+            f"{path}: made for skeleton {card['skeleton']!r}; the session streams the canonical one"
+        )
+    if card["feature_version"] != FEATURE_VERSION:
+        raise MotionStyleError(
+            f"{path}: made for feature version {card['feature_version']}; this package computes "
+            f"version {FEATURE_VERSION} (retrain or update the package)"
+        )

@@ -1,0 +1,321 @@
+"""The streaming stylizer session on real Bandai clips, with a small random-weight Style-ERD model
+(the real ONNX interface; its outputs are not stylish, but every property tested here is the
+runtime's: state carried across calls, batching, rates, controls, gaps, bad input)."""
+
+import numpy as np
+import pytest
+
+from motion_style_ros.core import features as F
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.resample import resample
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io.datasets import ClipInfo, load_clip
+from motion_style_ros.runtime.controls import Controls
+from motion_style_ros.runtime.onnx_model import OnnxModel, models_dir
+from motion_style_ros.runtime.session import RecurrentSession
+
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+CLIPS = ("dataset-2_walk_normal_010", "dataset-2_walk-turn-right_masculine_003",
+         "dataset-2_wave-both-hands_active_002")
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    from motion_style_ros.training.recurrent import export_random_model
+
+    path = tmp_path_factory.mktemp("erd") / "style_erd.onnx"
+    export_random_model(path, STYLES, seed=0)
+    return path
+
+
+@pytest.fixture(scope="module")
+def clips(datasets):
+    data = datasets / "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data"
+    return [load_clip(ClipInfo("bandai-2", data / f"{n}.bvh", n, "", "", "", "")) for n in CLIPS]
+
+
+def frames(motion):
+    """The clip as (rotations (T, 1, 22, 4), pelvis positions (T, 1, 3)): one performer."""
+    return motion.rotations[:, None], motion.positions[:, None, 1]
+
+
+def stream(session, rotations, roots, stamps=None):
+    """Step every frame; stacked outputs (T, P, 22, 4), (T, P, 3)."""
+    out = [session.step(rotations[t], roots[t], None if stamps is None else stamps[t])
+           for t in range(len(rotations))]
+    return np.stack([q for q, _ in out]), np.stack([p for _, p in out])
+
+
+def largest_jump(positions):
+    """Largest distance any joint moves between consecutive frames (m)."""
+    return float(np.linalg.norm(np.diff(positions, axis=0), axis=-1).max())
+
+
+def test_stepping_equals_direct_onnx_runs(model, clips):
+    """The session is encode -> the ONNX graph with its state carried -> decode, nothing else."""
+    walk = clips[0]
+    session = RecurrentSession(model)
+    session.set_style("elderly")
+    q, p = stream(session, *frames(walk))
+
+    onnx = OnnxModel(model)
+    features = F.encode(walk)
+    style = np.eye(len(STYLES), dtype=np.float32)[[STYLES.index("elderly")]]
+    state = np.zeros((1, session.card["state_size"]), np.float32)
+    outputs = []
+    for t in range(walk.n_frames):
+        out = onnx.run(features=features[t : t + 1], style=style, alpha=np.ones((1, 1), np.float32),
+                       state=state, reset=np.full((1, 1), float(t == 0), np.float32))
+        state = out["state_out"]
+        outputs.append(out["output"][0])
+    g = walk.global_positions()[0]
+    ref = F.decode(np.array(outputs), walk.fps, start_ground=g[1],
+                   start_yaw=F.facing_yaw(g, walk.skeleton))
+    assert np.abs(rot.angle_between(q[:, 0], ref.rotations)).max() < 1e-6
+    assert np.abs(p[:, 0] - ref.positions[:, 1]).max() < 1e-6
+    # The stylized root starts where the performer stands, then moves on its own velocities.
+    assert np.allclose(p[0, 0, [0, 2]], walk.positions[0, 1, [0, 2]])
+    assert np.linalg.norm(p[-1, 0] - p[0, 0]) > 0.5
+
+
+def test_state_carried_across_steps_equals_run(model, clips):
+    walk = clips[1]
+    whole = RecurrentSession(model).run(walk, "feminine", alpha=0.7)
+    session = RecurrentSession(model)
+    session.set_style("feminine")
+    session.set_alpha(0.7)
+    q, p = stream(session, *frames(walk[:60]))
+    q2, p2 = stream(session, *frames(walk[60:]), stamps=np.arange(60, walk.n_frames) / walk.fps)
+    assert np.array_equal(np.concatenate([q, q2])[:, 0], whole.rotations)
+    assert np.array_equal(np.concatenate([p, p2])[:, 0], whole.positions[:, 1])
+    assert whole.n_frames == walk.n_frames and whole.fps == walk.fps
+
+
+def test_alpha_zero_is_independent_of_style(model, clips):
+    walk = clips[0]
+    session = RecurrentSession(model)
+    neutral = [session.run(walk, s, alpha=0.0).global_positions() for s in ("active", "elderly")]
+    styled = [session.run(walk, s, alpha=1.0).global_positions() for s in ("active", "elderly")]
+    assert np.abs(neutral[0] - neutral[1]).max() < 1e-5
+    assert np.abs(styled[0] - styled[1]).max() > 1e-3  # the style does matter at alpha 1
+
+
+def switch_jumps(model, walk, blend, switch=100):
+    """Largest per-frame joint jump of the output around a style switch at frame ``switch``
+    (over the blend and a frame either side), and before it."""
+    session = RecurrentSession(model, blend_seconds=blend)
+    session.set_style("active")
+    rotations, roots = frames(walk)
+    out = []
+    for t in range(walk.n_frames):
+        if t == switch:
+            session.set_style("exhausted")
+        out.append(session.step(rotations[t], roots[t]))
+    q, p = np.stack([o[0][0] for o in out]), np.stack([o[1][0] for o in out])
+    g = type(walk).from_rotations(walk.skeleton, q, p, walk.fps).global_positions()
+    during = g[switch - 1 : switch + int(blend * walk.fps) + 2]
+    return largest_jump(during), largest_jump(g[: switch - 1])
+
+
+def test_style_switch_mid_stream_is_continuous(model, clips):
+    """A random model's outputs are far rougher in the style weights than a trained one's (whose
+    style space interpolates, Style-ERD Fig. 6): an untrained decoder swings limbs by tens of
+    degrees between two styles' weights. So here the runtime's part is checked: the blend spreads
+    the change, and over a long enough blend the largest jump is the input's own."""
+    walk = clips[0]
+    input_jump = largest_jump(walk.global_positions())
+    jumps = {blend: switch_jumps(model, walk, blend) for blend in (0.0, 0.3, 1.0)}
+    print(f"largest per-frame joint jump: input {100 * input_jump:.1f} cm; random-model output "
+          f"before the switch {100 * jumps[0.0][1]:.1f} cm; at the switch: "
+          + ", ".join(f"{blend:g} s blend {100 * j:.1f} cm" for blend, (j, _) in jumps.items()))
+    assert jumps[0.3][0] < jumps[0.0][0]
+    assert jumps[1.0][0] < 0.5 * jumps[0.0][0] and jumps[1.0][0] < 1.5 * input_jump
+
+
+def test_style_switch_with_the_shipped_model(clips):
+    if not (models_dir() / "style_erd.onnx").is_file():
+        pytest.skip("models/style_erd.onnx is not trained yet")
+    walk = clips[0]
+    input_jump = largest_jump(walk.global_positions())
+    blend, before = switch_jumps("style_erd.onnx", walk, 0.3)
+    print(f"shipped model, largest per-frame joint jump: input {100 * input_jump:.1f} cm; output "
+          f"before the switch {100 * before:.1f} cm; during the 0.3 s blend {100 * blend:.1f} cm")
+    assert blend < 2.0 * max(input_jump, before)
+
+
+def test_batched_performers_equal_separate_sessions(model, clips):
+    n = min(c.n_frames for c in clips)
+    rotations = np.stack([c.rotations[:n] for c in clips], axis=1)
+    roots = np.stack([c.positions[:n, 1] for c in clips], axis=1)
+    styles = ["elderly", "youthful", "normal"]
+
+    def drive(session, t, k):
+        """The same controls, to performer k of a batched session or to a single one."""
+        performer = k if session.performers > 1 else None
+        if t == 0:
+            session.set_style(styles[k], performer)
+        if t == 50 and k == 1:
+            session.set_alpha(0.3, performer)
+        if t == 70 and k == 2:
+            session.reset(performer)
+
+    batched = RecurrentSession(model, performers=3)
+    singles = [RecurrentSession(model) for _ in clips]
+    out_b, out_s = [], []
+    for t in range(n):
+        for k, s in enumerate(singles):
+            drive(batched, t, k)
+            drive(s, t, k)
+        out_b.append(batched.step(rotations[t], roots[t]))
+        out_s.append([s.step(rotations[t, k], roots[t, k]) for k, s in enumerate(singles)])
+    qb = np.stack([q for q, _ in out_b])
+    qs = np.stack([[q for q, _ in row] for row in out_s])
+    pb = np.stack([p for _, p in out_b])
+    ps = np.stack([[p for _, p in row] for row in out_s])
+    assert qb.shape == (n, 3, 22, 4) and qs.shape == (n, 3, 22, 4)
+    assert np.abs(rot.angle_between(qb, qs)).max() < 1e-4
+    assert np.abs(pb - ps).max() < 1e-4
+    # Performer 2 was reset at frame 70: its root snapped back onto the input's.
+    assert np.allclose(pb[70, 2, [0, 2]], roots[70, 2, [0, 2]])
+
+
+def test_120_hz_input_gives_120_hz_output(model, clips):
+    walk = clips[0][:90]
+    fast = resample(walk, 120.0)
+    s30, s120 = RecurrentSession(model), RecurrentSession(model, input_fps=120.0)
+    for s in (s30, s120):
+        s.set_style("masculine")
+    q30, p30 = stream(s30, *frames(walk))
+    q120, p120 = stream(s120, *frames(fast), stamps=np.arange(fast.n_frames) / 120.0)
+    assert len(q120) == fast.n_frames and s120.latency == pytest.approx(0.025)
+    # The model runs at 30 Hz on every 4th input frame; with 25 ms latency, output 4k + 3 shows
+    # model frame k, and the frames in between interpolate.
+    assert np.abs(p120[3::4] - p30[: len(p120[3::4])]).max() < 1e-5
+    assert np.abs(rot.angle_between(q120[3::4], q30[: len(q120[3::4])])).max() < 1e-4
+    quarter = p120[4::4]  # a quarter of the way from model frame k to k + 1
+    assert np.abs(quarter - (0.75 * p30[:-1] + 0.25 * p30[1:])[: len(quarter)]).max() < 1e-5
+    g = type(walk).from_rotations(walk.skeleton, q120[:, 0], p120[:, 0], 120.0).global_positions()
+    assert largest_jump(g) < 0.5 * largest_jump(
+        type(walk).from_rotations(walk.skeleton, q30[:, 0], p30[:, 0], 30.0).global_positions())
+
+
+def test_gaps_and_restarts_reset_the_stream(model, clips):
+    walk = clips[1]
+    rotations, roots = frames(walk)
+    n = walk.n_frames
+    fresh = RecurrentSession(model)
+    q_fresh, p_fresh = stream(fresh, rotations[60:], roots[60:])
+    stamps = np.arange(n) / walk.fps
+    for later, resets in ((stamps + 1.0, True), (stamps - 10.0, True), (stamps + 0.2, False)):
+        session = RecurrentSession(model)
+        stream(session, rotations[:60], roots[:60], stamps[:60])
+        q, p = stream(session, rotations[60:], roots[60:], later[60:])
+        same = np.abs(p - p_fresh).max() < 1e-9 and np.abs(q - q_fresh).max() < 1e-9
+        assert same == resets, f"jump to {later[60] - stamps[59]:+.2f} s"
+    session = RecurrentSession(model)
+    stream(session, rotations[:60], roots[:60])
+    session.reset()
+    q, p = stream(session, rotations[60:], roots[60:])
+    assert np.abs(p - p_fresh).max() < 1e-9 and np.abs(q - q_fresh).max() < 1e-9
+
+
+def test_follow_bounds_the_drift_from_the_input_trajectory(model, clips):
+    walk = clips[1]  # a turning walk: the random model's root barely moves, it falls behind
+    end = walk.positions[-1, 1, [0, 2]]
+    far = {}
+    for follow in (None, 0.3):
+        out = RecurrentSession(model, follow_seconds=follow).run(walk, "elderly")
+        far[follow] = np.linalg.norm(out.positions[-1, 1, [0, 2]] - end)
+    print(f"root distance from the input's after {walk.duration:.1f} s: free {far[None]:.2f} m, "
+          f"following with 0.3 s {far[0.3]:.2f} m")
+    assert far[None] > 1.0 and far[0.3] < 0.25 * far[None]
+
+
+def test_bad_input_is_rejected_without_touching_the_state(model, clips):
+    walk = clips[0][:40]
+    rotations, roots = frames(walk)
+    clean = RecurrentSession(model, performers=1)
+    q_ref, p_ref = stream(clean, rotations, roots)
+    nan = rotations[20].copy()
+    nan[0, 5, 2] = np.nan
+    zero = rotations[20].copy()
+    zero[0, 7] = 0.0
+    bad = [
+        ((nan, roots[20]), "NaN"),
+        ((rotations[20], roots[20] + np.inf), "NaN or infinite"),
+        ((rotations[20][:, :21], roots[20]), r"\(1, 22, 4\)"),
+        ((rotations[20].astype(int), roots[20]), "dtype int"),
+        ((rotations[20].astype(object), roots[20]), "dtype object"),
+        ((zero, roots[20]), "UpperArm_L has norm 0"),
+        ((rotations[20] * 1.5, roots[20]), "unit quaternions"),
+    ]
+    session = RecurrentSession(model, performers=1)
+    out = []
+    for t in range(walk.n_frames):
+        if t == 20:
+            for args, message in bad:
+                with pytest.raises(MotionStyleError, match=message):
+                    session.step(*args)
+            with pytest.raises(MotionStyleError, match="finite"):
+                session.step(rotations[t], roots[t], stamp=float("nan"))
+        # Slightly off-unit quaternions (float32 messages) are normalised, not rejected.
+        out.append(session.step(rotations[t] * (1.02 if t % 2 else 1.0), roots[t]))
+    q = np.stack([o[0] for o in out])
+    p = np.stack([o[1] for o in out])
+    assert np.abs(p - p_ref).max() < 1e-9 and np.abs(q - q_ref).max() < 1e-9
+
+
+def test_single_performer_frames_without_batch_axis(model, clips):
+    walk = clips[0]
+    a, b = RecurrentSession(model), RecurrentSession(model)
+    qa, pa = a.step(walk.rotations[0], walk.positions[0, 1])
+    qb, pb = b.step(walk.rotations[:1], walk.positions[:1, 1])
+    assert qa.shape == (22, 4) and pa.shape == (3,)
+    assert np.array_equal(qa, qb[0]) and np.array_equal(pa, pb[0])
+
+
+def test_controls_and_models_are_checked(model):
+    session = RecurrentSession(model, performers=2)
+    with pytest.raises(MotionStyleError, match="unknown style 'sad'.*active, elderly"):
+        session.set_style("sad")
+    with pytest.raises(MotionStyleError, match=r"alpha must be in \[0, 1\], got 1.5"):
+        session.set_alpha(1.5)
+    with pytest.raises(MotionStyleError, match=r"mix weight must be in \[0, 1\]"):
+        session.set_mix("elderly", -0.1)
+    with pytest.raises(MotionStyleError, match="performer 2 out of range.*0-1"):
+        session.set_style("elderly", performer=2)
+    with pytest.raises(MotionStyleError, match="missing.onnx: model file not found"):
+        RecurrentSession(model.parent / "missing.onnx")
+    with pytest.raises(MotionStyleError, match="judge_style.json: model card lacks kind"):
+        RecurrentSession("judge_style.onnx")
+
+
+def test_controls_blend_smoothly_from_wherever_they_are():
+    c = Controls(["a", "b", "c"], performers=2, style="a", blend_seconds=0.3)
+    style, alpha = c.advance(0.1)
+    assert np.array_equal(style, [[1, 0, 0], [1, 0, 0]]) and np.array_equal(alpha, [[1], [1]])
+    c.set_style("b", performer=1)
+    path = np.array([c.advance(0.05)[0][1] for _ in range(6)])
+    assert np.all(np.diff(path[:, 1]) > 0) and np.allclose(path[-1], [0, 1, 0])
+    assert np.allclose(path.sum(axis=1), 1.0)  # weights stay a mix
+    c.set_style("c", performer=1)
+    before = c.advance(0.15)[0][1]
+    c.set_mix("a", 0.5, performer=1)  # mid-blend: continues from where it is
+    first = c.advance(0.001)[0][1]
+    assert 0.1 < before[2] < 0.9 and np.abs(first - before).max() < 1e-3
+    for _ in range(40):
+        style, _ = c.advance(0.01)
+    assert np.allclose(style[1], [0.5, 0, 0.5]) and np.allclose(style[0], [1, 0, 0])
+
+
+def test_bench_command(model, capsys):
+    from motion_style_ros.cli.main import main
+
+    assert main(["bench", "recurrent", "--model", str(model), "--performers", "1,3",
+                 "--seconds", "0.05"]) == 0
+    out = capsys.readouterr().out
+    print(out)
+    rows = [line.split() for line in out.splitlines() if line.split()[:1] in (["1"], ["3"])]
+    assert [r[0] for r in rows] == ["1", "3"] and all(len(r) == 6 for r in rows)
+    assert "random-weight model" in out and "latency 25.0 ms" in out
+    assert int(out.rsplit(":", 1)[1].split()[-1]) >= 0
