@@ -1,0 +1,90 @@
+"""Start the stylizer with its params YAML, and optionally the VMC bridge and a synthetic performer.
+
+    ros2 launch motion_style_ros stylizer.launch.py target_style:=elderly alpha:=0.8
+    ros2 launch motion_style_ros stylizer.launch.py use_synthetic:=true markers:=true  # try-out
+    ros2 launch motion_style_ros stylizer.launch.py use_vmc:=true   # VMC in: config/vmc_bridge.yaml
+
+Parameters come from ``params_file`` (default: the installed ``config/stylizer.yaml``); a
+stylizer argument given on the command line overrides its parameter, one left empty keeps the
+file's value. Every node starts in ``namespace``, so the topics are ``<namespace>/joint_states``
+in and ``<namespace>/stylized/...`` out, and the VMC bridge and the synthetic performer feed the
+stylizer and the bridge streams its output back out without remapping.
+"""
+
+import yaml
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch_ros.actions import Node
+from launch_ros.substitutions import FindPackageShare
+
+PACKAGE = 'motion_style_ros'
+
+# Launch argument -> (stylizer parameter, how to read the argument's text, description).
+STYLIZER_ARGUMENTS = {
+    'model': ('model', str, 'ONNX model: a file name in models/ or a path'),
+    'target_style': ('target_style', str, 'style to perform, one of the model card\'s styles'),
+    'alpha': ('alpha', float, 'style intensity, 0 (the input) .. 1'),
+    'latent_seed': ('latent_seed', int, 'latent seed (variation within a style)'),
+    'performers': ('performers', yaml.safe_load,
+                   'topic prefixes, one per performer, e.g. "[alice, bob]"'),
+    'markers': ('publish_markers', yaml.safe_load,
+                'true: also publish a MarkerArray skeleton for RViz'),
+    'qos_reliability': ('qos_reliability', str, 'best_effort or reliable'),
+}
+
+
+def _stylizer(context, *args, **kwargs):
+    """The stylizer node, with an override for every stylizer argument that was given."""
+    overrides = {}
+    for argument, (parameter, parse, _) in STYLIZER_ARGUMENTS.items():
+        text = LaunchConfiguration(argument).perform(context)
+        if text:
+            try:
+                overrides[parameter] = parse(text)
+            except (ValueError, yaml.YAMLError):
+                raise RuntimeError(f'launch argument {argument}:={text!r} is not a valid '
+                                   f'{parameter} ({STYLIZER_ARGUMENTS[argument][2]})') from None
+    return [Node(
+        package=PACKAGE, executable='stylizer', name='stylizer',
+        namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
+        parameters=[LaunchConfiguration('params_file'), overrides],
+    )]
+
+
+def generate_launch_description():
+    share = FindPackageShare(PACKAGE)
+    arguments = [
+        DeclareLaunchArgument(
+            'params_file', default_value=PathJoinSubstitution([share, 'config', 'stylizer.yaml']),
+            description='stylizer parameters (node_name: ros__parameters: ...)'),
+        DeclareLaunchArgument('namespace', default_value='',
+                              description='namespace of every node started here'),
+        *(DeclareLaunchArgument(name, default_value='',
+                                description=f'{text}; empty: from params_file')
+          for name, (_, _, text) in STYLIZER_ARGUMENTS.items()),
+        DeclareLaunchArgument('use_vmc', default_value='false', choices=['true', 'false'],
+                              description='also start vmc_bridge (VMC/OSC in and out)'),
+        DeclareLaunchArgument(
+            'vmc_params_file', default_value=PathJoinSubstitution([share, 'config', 'vmc_bridge.yaml']),
+            description='vmc_bridge parameters (OSC ports, avatar host)'),
+        DeclareLaunchArgument('use_synthetic', default_value='false', choices=['true', 'false'],
+                              description='also start synthetic_performer (a try-out without mocap)'),
+        DeclareLaunchArgument('synthetic_motion', default_value='walk',
+                              choices=['walk', 'run', 'wave'],
+                              description='what the synthetic performer performs'),
+    ]
+    vmc_bridge = Node(
+        package=PACKAGE, executable='vmc_bridge', name='vmc_bridge',
+        namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
+        parameters=[LaunchConfiguration('vmc_params_file')],
+        condition=IfCondition(LaunchConfiguration('use_vmc')),
+    )
+    performer = Node(
+        package=PACKAGE, executable='synthetic_performer', name='synthetic_performer',
+        namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
+        parameters=[{'motion': LaunchConfiguration('synthetic_motion')}],
+        condition=IfCondition(LaunchConfiguration('use_synthetic')),
+    )
+    return LaunchDescription([*arguments, OpaqueFunction(function=_stylizer), vmc_bridge, performer])
