@@ -142,15 +142,12 @@ def test_cli_writes_the_report_and_prints_the_baselines(datasets, tmp_path):
 
 def test_the_recurrent_stylizer_is_scored_through_its_streaming_session(clips, judges, tmp_path):
     """A random-weight model, so this checks the wiring, not the quality (the model card has that)."""
-    import argparse
-
-    from motion_style_ros.cli.eval import STYLIZERS
+    from motion_style_ros.runtime.offline import stylizer
     from motion_style_ros.training.recurrent import export_random_model
 
     styles = sorted({info.style for info, _ in clips})
     export_random_model(tmp_path / "erd.onnx", styles, seed=0)
-    args = argparse.Namespace(model=str(tmp_path / "erd.onnx"), alpha=1.0, threads=1)
-    stylize = STYLIZERS["recurrent"](args)
+    stylize = stylizer("recurrent", str(tmp_path / "erd.onnx"))
     walks = [c for c in clips if c[0].content == "walk"][:2]
     pairs = [harness.Pair(info, s) for info, _ in walks for s in ("elderly", "youthful")
              if s != info.style]

@@ -4,27 +4,11 @@ from __future__ import annotations
 
 import argparse
 
-BASELINES = ("identity", "oracle")
 
+def _stylizers():
+    from motion_style_ros.runtime.offline import STYLIZERS
 
-def recurrent(args: argparse.Namespace):
-    """The recurrent (Style-ERD) session streaming each clip frame by frame, as a node would."""
-    from motion_style_ros.runtime.session import RecurrentSession
-
-    sessions: dict[float, RecurrentSession] = {}
-
-    def stylize(source, target_style: str):
-        if source.fps not in sessions:
-            sessions[source.fps] = RecurrentSession(args.model or "style_erd.onnx",
-                                                    input_fps=source.fps, threads=args.threads)
-        return sessions[source.fps].run(source, target_style, args.alpha)
-
-    return stylize
-
-
-# Trained stylizers by name: a factory taking the parsed arguments and returning
-# ``(source Motion, target style) -> Motion``. Backends register here as they land.
-STYLIZERS = {"recurrent": recurrent}
+    return tuple(STYLIZERS)
 
 
 def add_parser(subparsers):
@@ -36,7 +20,7 @@ def add_parser(subparsers):
                     "lengths), always beside the identity and oracle baselines. Writes "
                     "report.json and report.png and prints a table.",
     )
-    p.add_argument("--stylizer", choices=tuple(STYLIZERS), action="append", default=None,
+    p.add_argument("--stylizer", choices=_stylizers(), action="append", default=None,
                    help="a trained stylizer to score (repeat for several; default: the baselines only)")
     p.add_argument("--model", default=None,
                    help="model file of the stylizer (default: the shipped one)")
@@ -48,6 +32,10 @@ def add_parser(subparsers):
     p.add_argument("--seed", type=int, default=0, help="seed of the take choice (default: 0)")
     p.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--unseen", action="store_true",
+                   help="instead: stylize the CMU and Xia neutral clips (other rigs and studios, "
+                        "retargeted) into every style and check for NaN, joint flips, foot skating "
+                        "against the input's and bone lengths; writes unseen.json and pictures")
     p.set_defaults(func=run)
 
 
@@ -56,10 +44,13 @@ def run(args: argparse.Namespace) -> int:
 
     from motion_style_ros.evaluation import harness
     from motion_style_ros.evaluation.judges import Judge
+    from motion_style_ros.runtime.offline import stylizer
 
     names = args.stylizer or []
     # Build the stylizers first: a missing model fails here in one line, before the slow part.
-    stylizers = {name: STYLIZERS[name](args) for name in names}
+    stylizers = {name: stylizer(name, args.model, args.alpha, args.threads) for name in names}
+    if args.unseen:
+        return run_unseen(args, stylizers)
     judges = Judge("style", args.threads), Judge("content", args.threads)
     clips = harness.held_out_clips(progress=not args.quiet)
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
@@ -76,3 +67,41 @@ def run(args: argparse.Namespace) -> int:
                   f"(e.g. {system['skipped'][0]['reason']})")
     print(f"wrote {json_path} and {png_path}")
     return 0
+
+
+def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
+    import json
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.evaluation import unseen
+    from motion_style_ros.evaluation.judges import Judge
+    from motion_style_ros.io.render import render_gif, render_png
+
+    if not stylizers:
+        raise MotionStyleError("--unseen checks trained stylizers: name one with --stylizer")
+    styles = Judge("style").labels
+    clips = unseen.neutral_clips()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    reports = {}
+    for name, stylize in stylizers.items():
+        reports[name] = unseen.evaluate(stylize, styles, clips, progress=not args.quiet)
+        print(f"{name}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in reports[name]["summary"].items()))
+        # Pictures: the input beside two contrasting styles, for a walk of each studio.
+        for title, source in (clips[0], clips[-1]):
+            motions = [source, *(stylize(source, s) for s in ("elderly", "youthful"))]
+            titles = [title, f"{name}: elderly", f"{name}: youthful"]
+            stem = out / f"unseen_{name}_{title.split()[1]}"
+            render_png(motions, titles, stem.with_suffix(".png"))
+            render_gif(motions, titles, stem.with_suffix(".gif"), seconds=6.0)
+            print(f"wrote {stem}.png and {stem}.gif")
+    path = out / "unseen.json"
+    path.write_text(json.dumps({"settings": {"alpha": args.alpha, "styles": styles}, **reports},
+                               indent=1) + "\n")
+    print(f"wrote {path}")
+    return 0
+
+
+def _fmt(value) -> str:
+    return f"{value:.3g}" if isinstance(value, float) else str(value)

@@ -34,6 +34,7 @@ PROG = "motion-style"
 SUBCOMMANDS = (
     "demo",      # built-in demo: synthetic performer -> stylizer -> outputs
     "data",      # dataset unpacking, indexing, inspection
+    "stylize",   # restyle a BVH clip offline
     "retarget",  # retarget motion between skeletons
     "train",     # train models (torch)
     "eval",      # metrics and baselines

@@ -1,0 +1,59 @@
+"""``motion-style stylize``: restyle a BVH clip offline, through the same streaming session a node runs."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser(
+        "stylize", help="restyle a BVH clip into one or more styles",
+        description="Read a humanoid BVH clip (canonical Bandai/Unity names, CMU or Unity "
+                    "HumanBodyBones; retargeted to the canonical skeleton when needed), stream it "
+                    "frame by frame through a stylizer as the ROS node would, and write the "
+                    "stylized clip as a canonical-skeleton BVH (centimetres). With several "
+                    "--style, OUT gets the style name appended.",
+    )
+    p.add_argument("input", metavar="IN.bvh", help="source clip")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="stylized clip to write")
+    p.add_argument("--style", action="append", required=True,
+                   help="target style (repeat for several); see the model card's 'styles'")
+    p.add_argument("--alpha", type=float, default=1.0, help="style strength in [0, 1] (default: 1)")
+    p.add_argument("--backend", default="recurrent", help="stylizer backend (default: recurrent)")
+    p.add_argument("--model", default=None, help="model file (default: the backend's shipped model)")
+    p.add_argument("--render", metavar="OUT.png|OUT.gif", default=None,
+                   help="also draw the input beside every output")
+    p.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from motion_style_ros.core.retarget import retarget
+    from motion_style_ros.core.skeleton import canonical
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.io import bvh, render
+    from motion_style_ros.runtime.offline import stylizer
+
+    if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
+        raise MotionStyleError(f"{args.render}: --render must end in .png or .gif")
+    stylize = stylizer(args.backend, args.model, args.alpha, args.threads)
+    source = bvh.read(args.input).to_motion().check_finite(args.input)
+    if source.skeleton.names != canonical().names:
+        source = retarget(source, canonical())
+    output = Path(args.output)
+    outputs = []
+    for style in args.style:
+        result = stylize(source, style)
+        path = output if len(args.style) == 1 else output.with_name(f"{output.stem}_{style}{output.suffix}")
+        bvh.write(path, bvh.BvhClip.from_motion(result, scale=100.0), precision=6)
+        print(f"wrote {path}: {result.n_frames} frames at {result.fps:g} fps, style {style}, "
+              f"alpha {args.alpha:g}")
+        outputs.append(result)
+    if args.render:
+        motions, titles = [source, *outputs], [Path(args.input).stem, *args.style]
+        draw = render.render_png if args.render.lower().endswith(".png") else render.render_gif
+        draw(motions, titles, args.render)
+        print(f"wrote {args.render}")
+    return 0

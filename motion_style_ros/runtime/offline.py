@@ -1,0 +1,41 @@
+"""Whole clips through a streaming session, as a node would stream them: the one offline path
+shared by ``motion-style stylize`` and ``motion-style eval``.
+
+A stylizer here is ``(source Motion on the canonical skeleton, target style) -> Motion``. Backends
+register a factory in :data:`STYLIZERS` as they land.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from motion_style_ros.core.motion import Motion
+
+Stylizer = Callable[[Motion, str], Motion]
+
+
+def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
+    """The recurrent (Style-ERD) session, one per input frame rate, reset for every clip."""
+    from motion_style_ros.runtime.session import RecurrentSession
+
+    model = model or "style_erd.onnx"
+    RecurrentSession(model, threads=threads)  # fail now, in one line, on a missing or bad model
+    sessions: dict[float, RecurrentSession] = {}
+
+    def stylize(source: Motion, target_style: str) -> Motion:
+        if source.fps not in sessions:
+            sessions[source.fps] = RecurrentSession(model, input_fps=source.fps, threads=threads)
+        return sessions[source.fps].run(source, target_style, alpha)
+
+    return stylize
+
+
+STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent}
+
+
+def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
+    from motion_style_ros.errors import MotionStyleError
+
+    if backend not in STYLIZERS:
+        raise MotionStyleError(f"unknown backend {backend!r}; choose one of {', '.join(STYLIZERS)}")
+    return STYLIZERS[backend](model=model, alpha=alpha, threads=threads)

@@ -1,0 +1,68 @@
+"""Offline stylizing: `motion-style stylize` on a real BVH file and the unseen-input checks."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.synthetic import synthetic_motion
+from motion_style_ros.evaluation import unseen
+from motion_style_ros.io import bvh
+
+STYLES = ["active", "elderly", "normal"]
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    from motion_style_ros.training.recurrent import export_random_model
+
+    path = tmp_path_factory.mktemp("erd") / "erd.onnx"
+    export_random_model(path, STYLES, seed=0)
+    return path
+
+
+def stylize_cli(*args):
+    return subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "stylize", *map(str, args)],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_stylize_retargets_a_cmu_clip_and_writes_one_canonical_bvh_per_style(model, datasets, tmp_path):
+    source = datasets / "cmu/data/07/07_01.bvh"
+    out = stylize_cli(source, "-o", tmp_path / "walk.bvh", "--model", model, "--style", "elderly",
+                      "--style", "active", "--render", tmp_path / "walk.png")
+    assert out.returncode == 0, out.stderr
+    frames = bvh.read(source).to_motion().n_frames
+    results = [bvh.read(tmp_path / f"walk_{s}.bvh").to_motion() for s in ("elderly", "active")]
+    for result in results:
+        assert result.skeleton.names[1] == "Hips" and result.n_frames == frames
+        assert np.isfinite(result.rotations).all()
+    assert not np.allclose(results[0].rotations, results[1].rotations)
+    assert (tmp_path / "walk.png").stat().st_size > 10_000
+
+
+def test_stylize_errors_are_one_line(model, tmp_path):
+    bad_style = stylize_cli(tmp_path / "none.bvh", "-o", tmp_path / "o.bvh", "--model", model,
+                            "--style", "proud")
+    assert bad_style.returncode == 2 and len(bad_style.stderr.strip().splitlines()) == 1
+    (tmp_path / "bad.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    bad_file = stylize_cli(tmp_path / "bad.bvh", "-o", tmp_path / "o.bvh", "--model", model,
+                           "--style", "elderly")
+    assert bad_file.returncode == 2 and "bad.bvh" in bad_file.stderr
+    assert len(bad_file.stderr.strip().splitlines()) == 1
+
+
+def test_unseen_checks_catch_nan_and_flips():
+    walk = synthetic_motion("walk", 30.0, 2.0)
+    clean = unseen.check(walk, walk)
+    assert clean["finite"] and clean["flips"] == 0 and clean["foot_skating_ratio"] == pytest.approx(1.0)
+    flipped = walk.rotations.copy()
+    knee = walk.skeleton.index("LowerLeg_L")
+    flipped[30:, knee] = rot.multiply(rot.from_axis_angle(np.array([1.0, 0, 0]), np.pi * 0.9),
+                                      flipped[30:, knee])
+    bad = unseen.check(walk, type(walk).from_rotations(walk.skeleton, flipped, walk.positions[:, 1], 30.0))
+    assert bad["flips"] == 1 and bad["largest_joint_step_deg"] > unseen.FLIP_DEGREES
+    nan = flipped.copy()
+    nan[5] = np.nan
+    assert not unseen.check(walk, type(walk).from_rotations(walk.skeleton, nan, walk.positions[:, 1], 30.0))["finite"]
