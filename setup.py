@@ -75,6 +75,7 @@ setup(
             'recorder = motion_style_ros.nodes.recorder:main',
             'synthetic_performer = motion_style_ros.nodes.synthetic_performer:main',
             'vmc_bridge = motion_style_ros.nodes.vmc_bridge:main',
+            'stylizer = motion_style_ros.nodes.stylizer:main',
         ],
     },
 )

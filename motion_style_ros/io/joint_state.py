@@ -42,7 +42,8 @@ _CORE_TO_ROS = [2, 0, 1]
 _ROS_TO_CORE = [1, 2, 0]
 
 
-def _to_ros(v: np.ndarray) -> np.ndarray:
+def to_ros(v: np.ndarray) -> np.ndarray:
+    """Core-frame vectors ``(..., 3)`` (Y up) in REP-103 axes (Z up), e.g. FK positions for RViz."""
     return v[..., _CORE_TO_ROS]
 
 
@@ -52,7 +53,7 @@ def _to_core(v: np.ndarray) -> np.ndarray:
 
 def _quat_to_ros(q: np.ndarray) -> np.ndarray:
     """Conjugation by C turns the rotation axis with C and keeps the angle."""
-    return np.concatenate([q[..., :1], _to_ros(q[..., 1:])], axis=-1)
+    return np.concatenate([q[..., :1], to_ros(q[..., 1:])], axis=-1)
 
 
 def _quat_to_core(q: np.ndarray) -> np.ndarray:
@@ -85,7 +86,7 @@ def _encode_default(rotations: np.ndarray, root_positions: np.ndarray) -> np.nda
     quats = np.concatenate([hips[..., None, :], rotations[..., pelvis + 1:, :]], axis=-2)
     angles = _euler_xyz(_quat_to_ros(rot.normalize(quats)))
     lead = angles.shape[:-2]
-    return np.concatenate([_to_ros(np.asarray(root_positions, dtype=np.float64)),
+    return np.concatenate([to_ros(np.asarray(root_positions, dtype=np.float64)),
                            angles.reshape(lead + (-1,))], axis=-1)
 
 
@@ -116,7 +117,7 @@ class JointStateLayout:
         self._index = np.array([d.index for d in self._dofs], dtype=np.intp)
         self._scale = np.array([d.scale for d in self._dofs])
         self._offset = np.array([d.offset for d in self._dofs])
-        self._angular = self._index >= 3
+        self.angular = self._index >= 3  # per name: an angle (radians, 2 pi periodic), not metres
         self._by_name = {d.name: i for i, d in enumerate(self._dofs)}
         self._cached: tuple[tuple[str, ...], np.ndarray, np.ndarray] | None = None
 
@@ -184,7 +185,7 @@ class JointStateLayout:
         values = _encode_default(np.asarray(rotations, dtype=np.float64), root_positions)
         out = values[..., self._index] * self._scale + self._offset
         # An offset may push an angle past +-pi; wrap it back (decoding is 2 pi periodic anyway).
-        out[..., self._angular] = np.mod(out[..., self._angular] + np.pi, 2 * np.pi) - np.pi
+        out[..., self.angular] = np.mod(out[..., self.angular] + np.pi, 2 * np.pi) - np.pi
         return out
 
     def encode_motion(self, motion) -> np.ndarray:

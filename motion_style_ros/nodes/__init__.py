@@ -28,9 +28,10 @@ class PlayerNode(Node):
         self.done = Future()
 
     def param(self, name: str, default, description: str, low: float | None = None,
-              high: float | None = None):
-        """Declare a read-only parameter (nodes read them at start) and return its value."""
-        descriptor = ParameterDescriptor(description=description, read_only=True)
+              high: float | None = None, read_only: bool = True):
+        """Declare a parameter with its description and range and return its value; read-only
+        unless told otherwise (nodes read those once, at start)."""
+        descriptor = ParameterDescriptor(description=description, read_only=read_only)
         if low is not None and isinstance(default, int) and not isinstance(default, bool):
             descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
         elif low is not None:

@@ -96,7 +96,7 @@ class RecurrentSession:
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
         self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
         self._fresh = np.ones(self.performers, dtype=bool)
-        self._restart()
+        self.restart()
 
     # --- controls ---------------------------------------------------------------------------
 
@@ -134,7 +134,7 @@ class RecurrentSession:
         q, p, single = self._check_frame(rotations, root_positions)
         stamp = self._check_stamp(stamp)
         if self._stamp is not None and not (0.0 <= stamp - self._stamp <= self.gap_seconds):
-            self._restart()
+            self.restart()
         if self._stamp is None:
             self._origin = stamp
             self.reset()
@@ -166,7 +166,7 @@ class RecurrentSession:
         self.set_style(style)
         self.set_alpha(alpha)
         self.set_mix(None, 0.0)
-        self._restart()
+        self.restart()
         roots = motion.positions[:, self.skeleton.pelvis]
         frames = [self.step(motion.rotations[t : t + 1], roots[t : t + 1], t / motion.fps)
                   for t in range(motion.n_frames)]
@@ -176,8 +176,9 @@ class RecurrentSession:
 
     # --- internals ----------------------------------------------------------------------------
 
-    def _restart(self) -> None:
-        """Forget the stream's clock and outputs: the next frame starts it again."""
+    def restart(self) -> None:
+        """Forget the stream's clock and outputs: the next frame starts the stream again, every
+        performer afresh (as after a gap; :meth:`reset` keeps the clock running)."""
         self._stamp: float | None = None
         self._origin, self._ticks = 0.0, 0  # model frame k is at stream time origin + k / fps
         self._input: tuple[np.ndarray, np.ndarray] | None = None

@@ -1,0 +1,359 @@
+"""``stylizer``: restyle JointState streams live, one stylizer session per performer.
+
+Performer ``N`` (parameter ``performers``: a topic prefix each, ``""`` for none) subscribes
+``N/joint_states`` and publishes ``N/stylized/joint_states`` (the input's names in the input's order,
+its stamp carried through), ``N/stylized/trajectory`` (JointTrajectory chunks that ros2_control's
+JointTrajectoryController accepts) and, with ``publish_markers``, ``N/stylized/markers`` (the stylized
+skeleton for RViz). Names are relative, so node namespaces and remaps apply. Every performer has its
+own session: their streams need not be in step. Style, alpha and a mix style change live through
+parameters and blend in over ``blend_seconds``; ``~/reset`` starts every stream afresh. Bad messages
+are dropped and counted per reason; the counts, frame counts and processing latency go to
+``/diagnostics`` once a second.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections import deque
+
+import numpy as np
+from builtin_interfaces.msg import Duration, Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.exceptions import InvalidTopicNameException
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from visualization_msgs.msg import Marker, MarkerArray
+
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io.joint_state import JointStateLayout, to_ros
+from motion_style_ros.nodes import PlayerNode, joint_state, run
+from motion_style_ros.runtime.session import RecurrentSession
+
+NAME = "stylizer"
+BACKENDS = ("recurrent",)  # the windowed stgcn backend plugs in here through the same session interface
+RELIABILITY = {"best_effort": ReliabilityPolicy.BEST_EFFORT, "reliable": ReliabilityPolicy.RELIABLE}
+DROP_REASONS = ("mismatched_lengths", "non_finite", "bad_names", "duplicate_stamp", "out_of_order",
+                "invalid_frame")
+DYNAMIC = ("target_style", "alpha", "mix_style", "mix_weight", "latent_seed", "frame_id")
+WARN_EVERY = 10.0  # s between two warnings of the same kind
+LATENCY_WINDOW = 1000  # frames the latency percentiles are taken over
+TWO_PI = 2.0 * np.pi
+
+
+class Dropped(Exception):
+    """A message that cannot be stylized: ``reason`` is one of DROP_REASONS."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(detail)
+        self.reason = reason
+
+
+class Performer:
+    """One performer's topics, session, counters and what its outputs continue from."""
+
+    def __init__(self, node: "Stylizer", prefix: str, session: RecurrentSession, qos: QoSProfile,
+                 markers: bool) -> None:
+        self.prefix = prefix
+        self.session = session
+        try:
+            self.state_out = node.create_publisher(JointState, self.topic("stylized/joint_states"), qos)
+            self.trajectory_out = node.create_publisher(JointTrajectory,
+                                                        self.topic("stylized/trajectory"), qos)
+            self.markers_out = (node.create_publisher(MarkerArray, self.topic("stylized/markers"), qos)
+                                if markers else None)
+            node.create_subscription(JointState, self.topic("joint_states"),
+                                     lambda msg: node.on_state(self, msg), qos)
+        except InvalidTopicNameException as exc:
+            raise MotionStyleError(f"parameter performers: {exc}") from None
+        self.input = node.resolve_topic_name(self.topic("joint_states"))
+        self.counts = dict.fromkeys(["frames_in", "frames_out", *(f"dropped_{r}" for r in DROP_REASONS)],
+                                    0)
+        self.latencies: deque[float] = deque(maxlen=LATENCY_WINDOW)
+        self.reported_drops = 0
+        self.names: tuple[str, ...] = ()
+        self.slots = np.zeros(0, dtype=np.intp)  # input index of each layout name
+        self.angular = np.zeros(0, dtype=bool)  # per input name: an angle to unwrap
+        self.clear()
+
+    def topic(self, name: str) -> str:
+        return f"{self.prefix.rstrip('/')}/{name}" if self.prefix else name
+
+    def clear(self) -> None:
+        """Forget the stream: the next frame may have any stamp and starts a new trajectory."""
+        self.last_stamp_ns: int | None = None
+        self.chunk: list[tuple[int, np.ndarray]] = []  # (stamp ns, unwrapped positions)
+        self.chunk_frame_id = ""
+        self.previous: np.ndarray | None = None  # the last trajectory point, to unwrap against
+
+    @property
+    def dropped(self) -> int:
+        return sum(self.counts[f"dropped_{r}"] for r in DROP_REASONS)
+
+
+class Stylizer(PlayerNode):
+    def __init__(self) -> None:
+        super().__init__(NAME)
+        prefixes = self.param("performers", [""], "topic prefix of each performer (one session each): "
+                              "performer N subscribes N/joint_states and publishes N/stylized/...; "
+                              "'' = the node's namespace")
+        model = self.param("model", "style_erd.onnx", "stylizer model: a shipped model's file name "
+                           "(models/) or a path; its JSON model card lies beside it")
+        backend = self.param("backend", "recurrent", f"stylizer backend: {', '.join(BACKENDS)}")
+        input_fps = self.param("input_fps", 0.0, "nominal input rate in Hz (0: the model's rate); "
+                               "sets the output latency, 1/model_fps - 1/input_fps", 0.0, 1000.0)
+        blend = self.param("blend_seconds", 0.3, "seconds over which a style/alpha/mix change blends "
+                           "in", 0.0, 60.0)
+        layout = self.param("layout", "", "JointState layout YAML (config/layouts/); '' = canonical")
+        reliability = self.param("qos_reliability", "best_effort", "QoS reliability of the streams: "
+                                 "best_effort (sensor data; matches every peer) or reliable")
+        depth = self.param("qos_depth", 10, "QoS history depth of the streams", 1, 1000)
+        self.trajectory_points = self.param("trajectory_points", 6, "points per JointTrajectory "
+                                            "chunk", 1, 120)
+        publish_markers = self.param("publish_markers", False, "publish the stylized skeleton "
+                                          "as a visualization_msgs/MarkerArray on stylized/markers")
+        threads = self.param("threads", 1, "ONNX Runtime threads per performer", 1, 16)
+        if backend not in BACKENDS:
+            raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
+        if reliability not in RELIABILITY:
+            raise MotionStyleError(f"parameter qos_reliability is {reliability!r}; allowed: "
+                                   f"{', '.join(RELIABILITY)}")
+        if not prefixes or len(set(prefixes)) != len(prefixes):
+            raise MotionStyleError(f"parameter performers is {list(prefixes)}; give distinct topic "
+                                   "prefixes, e.g. ['alice', 'bob'] (or [''] for one performer)")
+        self.backend = backend
+        self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
+        sessions = [RecurrentSession(model, 1, input_fps or None, blend, threads) for _ in prefixes]
+        session = sessions[0]
+        self.styles = session.styles
+        self.period_ns = round(1e9 / session.input_fps)
+        self.settings = {
+            "target_style": self.param("target_style", session.card.get("neutral_style", session.styles[0]),
+                                       f"style to restyle into: {', '.join(session.styles)}",
+                                       read_only=False),
+            "alpha": self.param("alpha", 1.0, "strength of the style: 0 = the model's neutral "
+                                "motion, 1 = the full style", 0.0, 1.0, read_only=False),
+            "mix_style": self.param("mix_style", "", "a second style mixed in with mix_weight; "
+                                    "'' = none", read_only=False),
+            "mix_weight": self.param("mix_weight", 0.0, "weight of mix_style: 0 = target_style "
+                                     "alone, 1 = mix_style alone", 0.0, 1.0, read_only=False),
+            "latent_seed": self.param("latent_seed", 0, "seed of the style latent; used by the "
+                                      "windowed (stgcn) backend only, the recurrent one has no "
+                                      "latent space", 0, 2**31 - 1, read_only=False),
+            "frame_id": self.param("frame_id", "", "header.frame_id of the outputs; '' = the input's "
+                                   "(markers: 'world')", read_only=False),
+        }
+        for key in ("target_style", "mix_style"):
+            if reason := self._style_problem(key, self.settings[key]):
+                raise MotionStyleError(f"parameter {key}: {reason}")
+        qos = QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
+        self.performers = [Performer(self, prefix, s, qos, publish_markers)
+                           for prefix, s in zip(prefixes, sessions)]
+        self._apply(self.settings)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        skeleton = session.skeleton
+        self._bones = np.array([[skeleton.parents[j], j]
+                                for j in range(skeleton.pelvis + 1, skeleton.n_joints)]).ravel()
+        self._warned: dict[str, float] = {}
+        self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(1.0, self._publish_diagnostics)
+        self.create_service(Trigger, "~/reset", self._reset)
+        self.get_logger().info(
+            f"stylizing {', '.join(p.input for p in self.performers)} "
+            f"with {session.model.path.name} ({backend}, {session.fps:g} Hz model, "
+            f"{1e3 * session.latency:.1f} ms latency) into {self.settings['target_style']!r}")
+
+    # --- parameters ---------------------------------------------------------------------------
+
+    def _style_problem(self, key: str, style: str) -> str | None:
+        """Why ``style`` is no value for parameter ``key``, or None."""
+        if style in self.styles or (key == "mix_style" and style == ""):
+            return None
+        return (f"unknown style {style!r}; this model knows: {', '.join(self.styles)}"
+                + (" ('' = no mix)" if key == "mix_style" else ""))
+
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        """Types and ranges are checked by the descriptors before this runs; styles here."""
+        changes = {p.name: p.value for p in parameters if p.name in DYNAMIC}
+        for key in ("target_style", "mix_style"):
+            if key in changes and (reason := self._style_problem(key, changes[key])):
+                return SetParametersResult(successful=False, reason=reason)
+        self.settings.update(changes)
+        self._apply(changes)
+        return SetParametersResult(successful=True)
+
+    def _apply(self, changes: dict) -> None:
+        """Hand changed controls to every session; they blend in from the next frame."""
+        for p in self.performers:
+            if "target_style" in changes:
+                p.session.set_style(changes["target_style"])
+            if "alpha" in changes:
+                p.session.set_alpha(changes["alpha"])
+            if "mix_style" in changes or "mix_weight" in changes:
+                p.session.set_mix(self.settings["mix_style"] or None, self.settings["mix_weight"])
+
+    # --- streaming ------------------------------------------------------------------------------
+
+    def on_state(self, p: Performer, msg: JointState) -> None:
+        start = time.perf_counter()
+        p.counts["frames_in"] += 1
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        if stamp_ns == 0:  # unstamped: the frame is taken as of now
+            stamp_ns = self.get_clock().now().nanoseconds
+            msg.header.stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+        try:
+            positions = self._check(p, msg, stamp_ns)
+            try:
+                rotations, root = self.layout.decode(msg.name, positions)
+            except MotionStyleError as exc:
+                raise Dropped("bad_names", str(exc)) from None
+            try:
+                rotations, root = p.session.step(rotations, root, stamp_seconds(msg.header.stamp))
+            except MotionStyleError as exc:
+                raise Dropped("invalid_frame", str(exc)) from None
+        except Dropped as drop:
+            p.counts[f"dropped_{drop.reason}"] += 1
+            self._warn(drop.reason, f"{p.input}: dropped a JointState ({drop.reason.replace('_', ' ')}): {drop}")
+            return
+        p.last_stamp_ns = stamp_ns
+        self._use_names(p, msg.name)
+        out = positions.copy()  # names the layout ignores pass through as they came
+        out[p.slots] = self.layout.encode(rotations, root)
+        frame_id = self.settings["frame_id"] or msg.header.frame_id
+        p.state_out.publish(joint_state(p.names, out, msg.header.stamp, frame_id))
+        p.counts["frames_out"] += 1
+        self._add_point(p, stamp_ns, out, frame_id)
+        if p.markers_out is not None:
+            p.markers_out.publish(self._markers(p, rotations, root, msg.header.stamp))
+        p.latencies.append(time.perf_counter() - start)
+
+    def _check(self, p: Performer, msg: JointState, stamp_ns: int) -> np.ndarray:
+        """The message's positions, or Dropped; names are checked by the layout's decode."""
+        positions = np.asarray(msg.position, dtype=np.float64)
+        if len(msg.name) != len(positions):
+            raise Dropped("mismatched_lengths", f"{len(msg.name)} names but {len(positions)} positions")
+        if not np.isfinite(positions).all():
+            bad = [msg.name[i] for i in np.flatnonzero(~np.isfinite(positions))[:5]]
+            raise Dropped("non_finite", f"NaN or infinite positions for {bad}")
+        if p.last_stamp_ns is not None and stamp_ns <= p.last_stamp_ns:
+            reason = "duplicate_stamp" if stamp_ns == p.last_stamp_ns else "out_of_order"
+            raise Dropped(reason, f"stamp {stamp_ns * 1e-9:.9f} s is not after the previous frame's "
+                          f"{p.last_stamp_ns * 1e-9:.9f} s")
+        return positions
+
+    def _use_names(self, p: Performer, names) -> None:
+        """Where the layout's names sit in this message (worked out again when they change); a
+        trajectory never mixes two name lists."""
+        if tuple(names) == p.names:
+            return
+        self._flush(p)
+        p.previous = None
+        p.names = tuple(names)
+        where = {n: i for i, n in enumerate(p.names)}
+        p.slots = np.array([where[n] for n in self.layout.names], dtype=np.intp)
+        p.angular = np.zeros(len(p.names), dtype=bool)
+        p.angular[p.slots] = self.layout.angular
+
+    def _add_point(self, p: Performer, stamp_ns: int, positions: np.ndarray, frame_id: str) -> None:
+        """Queue one trajectory point, angles unwrapped against the previous point (no 2 pi jumps
+        inside or between chunks); publish a chunk when full or when the stream had a gap."""
+        if p.chunk and (stamp_ns - p.chunk[-1][0]) * 1e-9 > p.session.gap_seconds:
+            self._flush(p)
+        point = positions.copy()
+        if p.previous is not None:
+            a = p.angular
+            point[a] = p.previous[a] + np.mod(point[a] - p.previous[a] + np.pi, TWO_PI) - np.pi
+        p.previous = point
+        p.chunk.append((stamp_ns, point))
+        p.chunk_frame_id = frame_id
+        if len(p.chunk) == self.trajectory_points:
+            self._flush(p)
+
+    def _flush(self, p: Performer) -> None:
+        """Publish the queued points as one JointTrajectory. Its header.stamp stays zero ("start on
+        receipt" for JointTrajectoryController: the frames are already past); the points keep the
+        input's spacing, the first one a nominal frame period after the start."""
+        if not p.chunk:
+            return
+        msg = JointTrajectory(joint_names=list(p.names))
+        msg.header.frame_id = p.chunk_frame_id
+        first = p.chunk[0][0]
+        for stamp_ns, positions in p.chunk:
+            offset = stamp_ns - first + self.period_ns
+            msg.points.append(JointTrajectoryPoint(
+                positions=positions.tolist(),
+                time_from_start=Duration(sec=offset // 1_000_000_000, nanosec=offset % 1_000_000_000)))
+        p.trajectory_out.publish(msg)
+        p.chunk = []
+
+    def _markers(self, p: Performer, rotations: np.ndarray, root: np.ndarray, stamp) -> MarkerArray:
+        """The stylized skeleton's bones below the pelvis as one LINE_LIST, in REP-103 axes."""
+        session = p.session
+        motion = Motion.from_rotations(session.skeleton, rotations[None], root[None], session.fps)
+        ends = to_ros(motion.global_positions()[0][self._bones])
+        marker = Marker(ns=p.prefix or NAME, id=0, type=Marker.LINE_LIST, action=Marker.ADD,
+                        points=[Point(x=x, y=y, z=z) for x, y, z in ends.tolist()])
+        marker.header.stamp = stamp
+        marker.header.frame_id = self.settings["frame_id"] or "world"
+        marker.pose.orientation.w = 1.0
+        marker.scale.x = 0.03  # line width, m
+        marker.color.r, marker.color.g, marker.color.b, marker.color.a = 0.95, 0.45, 0.1, 1.0
+        return MarkerArray(markers=[marker])
+
+    def _warn(self, kind: str, message: str) -> None:
+        now = time.monotonic()
+        if now - self._warned.get(kind, -np.inf) >= WARN_EVERY:
+            self._warned[kind] = now
+            self.get_logger().warning(message)
+
+    # --- service and diagnostics --------------------------------------------------------------
+
+    def _reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        for p in self.performers:
+            self._flush(p)
+            p.session.restart()
+            p.clear()
+        response.success = True
+        response.message = (f"reset {len(self.performers)} performer(s): each one's next frame "
+                            "starts a fresh stream")
+        return response
+
+    def _publish_diagnostics(self) -> None:
+        array = DiagnosticArray(status=[self._status(p) for p in self.performers])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._diagnostics.publish(array)
+
+    def _status(self, p: Performer) -> DiagnosticStatus:
+        dropped = p.dropped
+        ms = 1e3 * np.array(p.latencies)
+        p50, p99 = (np.percentile(ms, [50, 99]) if len(ms) else (np.nan, np.nan))
+        values = {**p.counts, "dropped": dropped, "latency_p50_ms": f"{p50:.3f}",
+                  "latency_p99_ms": f"{p99:.3f}", "model": str(p.session.model.path),
+                  "backend": self.backend, "input": p.input,
+                  **{k: self.settings[k] for k in ("target_style", "alpha", "mix_style", "mix_weight")}}
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.WARN if dropped > p.reported_drops else DiagnosticStatus.OK,
+            name=f"{self.get_name()}: {p.input}",
+            message=f"{p.counts['frames_in']} frames in, {p.counts['frames_out']} out, {dropped} dropped",
+            hardware_id=p.session.model.path.name,
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+        p.reported_drops = dropped
+        return status
+
+
+def stamp_seconds(stamp: Time) -> float:
+    """A header stamp as the session's float seconds (offline replays convert stamps the same way)."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def main(args=None) -> int:
+    return run(Stylizer, NAME, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
