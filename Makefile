@@ -18,9 +18,8 @@ $(STAMP): requirements-dev.txt requirements-ros-wheels.txt setup.py setup.cfg pa
 	$(VENV)/bin/python -m pip install -r requirements-dev.txt -e .
 	@touch $@
 
-# The demo reads real recordings; unpack them first when the shared datasets are beside the project.
+# The live demo needs no dataset: a synthetic performer streams through the shipped model.
 demo: venv
-	@if [ -x ../shared/datasets/unpack.sh ]; then ../shared/datasets/unpack.sh >/dev/null; fi
 	$(VENV)/bin/motion-style demo $(DEMO_ARGS)
 
 test: venv
