@@ -15,20 +15,47 @@ os.environ.pop("ROS_STATIC_PEERS", None)
 os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
 
 
-@pytest.fixture
-def ros_env(tmp_path):
+@pytest.fixture(scope="module")
+def ros_env(tmp_path_factory):
     """Environment for a subprocess that uses rclpy: pass it as ``subprocess.run(..., env=ros_env)``.
 
     The ROS 2 PyPI wheels need LD_LIBRARY_PATH to point at their shared libraries;
     ros-wheels-bootstrapper (a .pth file) sets it by re-executing Python at start-up unless
     _ROS_WHEELS_BOOTSTRAP_COMPLETE is set. The guard is dropped here so that the child Python
-    sets it up for its own environment whatever the parent did. ROS logs go to tmp_path.
+    sets it up for its own environment whatever the parent did. ROS logs go to a temporary folder
+    of the test module.
     """
     env = dict(os.environ)
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
-    env["ROS_LOG_DIR"] = str(tmp_path / "ros_log")
+    env["ROS_LOG_DIR"] = str(tmp_path_factory.mktemp("ros_log"))
     env["PYTHONUNBUFFERED"] = "1"
     return env
+
+
+@pytest.fixture
+def listener():
+    """A test node in its own rclpy context (``test/ros_helpers.py``)."""
+    from ros_helpers import Listener
+
+    node = Listener()
+    yield node
+    node.close()
+
+
+@pytest.fixture
+def start(ros_env):
+    """Start ``motion_style_ros.nodes.<name>`` with ROS parameters; stopped (SIGINT, then kill)."""
+    from ros_helpers import start_node, stop
+
+    procs = []
+
+    def start_one(name, **params):
+        procs.append(start_node(name, ros_env, **params))
+        return procs[-1]
+
+    yield start_one
+    for proc in procs:
+        stop(proc)
 
 
 @pytest.fixture(scope="session")

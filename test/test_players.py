@@ -1,105 +1,19 @@
 """Players, recorder and synthetic performer as real processes talking over DDS to a test node."""
 
-import signal
-import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
 
 rclpy = pytest.importorskip("rclpy")
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from ros_helpers import TIMEOUT, stamps, stop  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from motion_style_ros.io import bags  # noqa: E402
 from motion_style_ros.io.joint_state import JointStateLayout  # noqa: E402
 
 CMU_CLIP = "cmu/data/02/02_02.bvh"
-TIMEOUT = 60.0
-BEST_EFFORT = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
-
-
-class Listener:
-    """A test node in its own context: subscribe, publish, spin until a condition holds."""
-
-    def __init__(self):
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node("player_test_listener", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.received: dict[str, list] = {}
-
-    def subscribe(self, topic):
-        self.received[topic] = []
-        self.node.create_subscription(JointState, topic, self.received[topic].append, BEST_EFFORT)
-        return self.received[topic]
-
-    def spin_until(self, condition, what, timeout=TIMEOUT, procs=()):
-        deadline = time.monotonic() + timeout
-        while not condition():
-            for proc in procs:
-                if proc.poll() not in (None, 0):
-                    pytest.fail(f"{what}: process exited with {proc.returncode}: {proc.stderr.read()}")
-            if time.monotonic() > deadline:
-                pytest.fail(f"timed out waiting for {what}")
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def spin_while_running(self, proc):
-        """Spin until ``proc`` exits by itself, then a little longer for messages still in flight."""
-        deadline = time.monotonic() + TIMEOUT
-        while proc.poll() is None and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-        for _ in range(20):
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def close(self):
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
-@pytest.fixture
-def listener():
-    node = Listener()
-    yield node
-    node.close()
-
-
-@pytest.fixture
-def start(ros_env):
-    """Start ``motion_style_ros.nodes.<name>`` with ROS parameters; stopped (SIGINT, then kill)."""
-    procs = []
-
-    def start_node(name, **params):
-        cmd = [sys.executable, "-m", f"motion_style_ros.nodes.{name}", "--ros-args"]
-        for key, value in params.items():
-            cmd += ["-p", f"{key}:={value}"]
-        proc = subprocess.Popen(cmd, env=ros_env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)
-        procs.append(proc)
-        return proc
-
-    yield start_node
-    for proc in procs:
-        stop(proc)
-
-
-def stop(proc, timeout=20.0):
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    return proc.returncode
-
-
-def stamps(messages):
-    return np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in messages])
 
 
 def in_order_subsequence(rows, expected):

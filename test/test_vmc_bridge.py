@@ -1,9 +1,6 @@
 """vmc_bridge node: real UDP in and out, the node in its own process, JointState over DDS."""
 
-import signal
 import socket
-import subprocess
-import sys
 import time
 
 import numpy as np
@@ -11,6 +8,7 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import qos_profile_sensor_data
+from ros_helpers import TIMEOUT, start_node, stop
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.core import rotations as rot
@@ -19,7 +17,6 @@ from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.io import vmc
 from motion_style_ros.io.joint_state import JointStateLayout
 
-WAIT = 60.0  # generous bound for readiness on a loaded machine; never a timing assertion
 LAYOUT = JointStateLayout.canonical()
 
 
@@ -60,7 +57,7 @@ class Harness:
         self.stylized = self.node.create_publisher(JointState, "stylized/joint_states",
                                                    qos_profile_sensor_data)
 
-    def spin_until(self, done, what, timeout=WAIT):
+    def spin_until(self, done, what, timeout=TIMEOUT):
         deadline = time.monotonic() + timeout
         while not done():
             assert self.proc.poll() is None, f"vmc_bridge exited with {self.proc.returncode}"
@@ -75,7 +72,7 @@ class Harness:
         n = len(received)
         for _ in range(10):
             send()
-            if self.spin_until(lambda: len(received) > n, what, timeout=WAIT / 10):
+            if self.spin_until(lambda: len(received) > n, what, timeout=TIMEOUT / 10):
                 return received[-1]
         pytest.fail(f"no {what} came back")
 
@@ -87,33 +84,23 @@ class Harness:
 @pytest.fixture
 def bridge(ros_env, vmc_out, tmp_path):
     port = free_udp_port()
-    cmd = [sys.executable, "-m", "motion_style_ros.nodes.vmc_bridge", "--ros-args",
-           "-p", f"osc_port:={port}", "-p", f"send_port:={vmc_out.address[1]}"]
-    with open(tmp_path / "vmc_bridge.log", "w+") as log:
-        proc = subprocess.Popen(cmd, env=ros_env, stdin=subprocess.DEVNULL, stdout=log,
-                                stderr=subprocess.STDOUT)
-        rclpy.init()
-        harness = Harness(proc)
-        harness.sender = vmc.VmcSender("127.0.0.1", port)
-        harness.port = port
-        try:
-            ready = harness.spin_until(
-                lambda: harness.node.count_publishers("joint_states") > 0
-                and harness.node.count_subscribers("stylized/joint_states") > 0, "bridge")
-            assert ready, "vmc_bridge did not come up"
-            yield harness
-        finally:
-            harness.node.destroy_node()
-            rclpy.shutdown()
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-                try:
-                    proc.wait(timeout=15)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
-            log.seek(0)
-            print(log.read())  # shown by pytest when the test fails
+    log = tmp_path / "vmc_bridge.log"
+    proc = start_node("vmc_bridge", ros_env, log=log, osc_port=port, send_port=vmc_out.address[1])
+    rclpy.init()
+    harness = Harness(proc)
+    harness.sender = vmc.VmcSender("127.0.0.1", port)
+    harness.port = port
+    try:
+        ready = harness.spin_until(
+            lambda: harness.node.count_publishers("joint_states") > 0
+            and harness.node.count_subscribers("stylized/joint_states") > 0, "bridge")
+        assert ready, "vmc_bridge did not come up"
+        yield harness
+    finally:
+        harness.node.destroy_node()
+        rclpy.shutdown()
+        stop(proc, timeout=15)
+        print(log.read_text())  # shown by pytest when the test fails
 
 
 def decoded(state):

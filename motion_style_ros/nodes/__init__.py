@@ -30,8 +30,11 @@ class PlayerNode(Node):
     def param(self, name: str, default, description: str, low: float | None = None,
               high: float | None = None, read_only: bool = True):
         """Declare a parameter with its description and range and return its value; read-only
-        unless told otherwise (nodes read those once, at start)."""
-        descriptor = ParameterDescriptor(description=description, read_only=read_only)
+        unless told otherwise (nodes read those once, at start). A parameter that changes live is
+        dynamically typed: the node's set-parameters callback checks its type, so that the reason
+        for a rejection can name the type wanted (rclpy's names it by number)."""
+        descriptor = ParameterDescriptor(description=description, read_only=read_only,
+                                         dynamic_typing=not read_only)
         if low is not None and isinstance(default, int) and not isinstance(default, bool):
             descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
         elif low is not None:

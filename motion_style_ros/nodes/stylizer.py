@@ -29,7 +29,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import JointStateLayout, to_ros
 from motion_style_ros.nodes import PlayerNode, joint_state, run
@@ -40,7 +40,12 @@ BACKENDS = ("recurrent",)  # the windowed stgcn backend plugs in here through th
 RELIABILITY = {"best_effort": ReliabilityPolicy.BEST_EFFORT, "reliable": ReliabilityPolicy.RELIABLE}
 DROP_REASONS = ("mismatched_lengths", "non_finite", "bad_names", "duplicate_stamp", "out_of_order",
                 "invalid_frame")
-DYNAMIC = ("target_style", "alpha", "mix_style", "mix_weight", "latent_seed", "frame_id")
+# Parameters that change live, with their types (checked by the node: rclpy's own message would
+# name the types by number).
+DYNAMIC = {"target_style": str, "alpha": float, "mix_style": str, "mix_weight": float,
+           "latent_seed": int, "frame_id": str}
+TYPE_NAMES = {str: "string", float: "double", int: "integer", bool: "bool", list: "array",
+              type(None): "nothing (not set)"}
 WARN_EVERY = 10.0  # s between two warnings of the same kind
 LATENCY_WINDOW = 1000  # frames the latency percentiles are taken over
 TWO_PI = 2.0 * np.pi
@@ -148,8 +153,8 @@ class Stylizer(PlayerNode):
             "frame_id": self.param("frame_id", "", "header.frame_id of the outputs; '' = the input's "
                                    "(markers: 'world')", read_only=False),
         }
-        for key in ("target_style", "mix_style"):
-            if reason := self._style_problem(key, self.settings[key]):
+        for key, value in self.settings.items():
+            if reason := self._problem(key, value):
                 raise MotionStyleError(f"parameter {key}: {reason}")
         qos = QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
         self.performers = [Performer(self, prefix, s, qos, publish_markers)
@@ -170,18 +175,23 @@ class Stylizer(PlayerNode):
 
     # --- parameters ---------------------------------------------------------------------------
 
-    def _style_problem(self, key: str, style: str) -> str | None:
-        """Why ``style`` is no value for parameter ``key``, or None."""
-        if style in self.styles or (key == "mix_style" and style == ""):
-            return None
-        return (f"unknown style {style!r}; this model knows: {', '.join(self.styles)}"
-                + (" ('' = no mix)" if key == "mix_style" else ""))
+    def _problem(self, key: str, value) -> str | None:
+        """Why ``value`` is no value for the live parameter ``key``, or None. (Ranges are checked
+        by the descriptors before the callback runs.)"""
+        want = DYNAMIC[key]
+        if type(value) is not want:
+            got = TYPE_NAMES.get(type(value), type(value).__name__)
+            return f"{key} must be of type {TYPE_NAMES[want]}, got {got} {value!r}"
+        if key in ("target_style", "mix_style") and value not in self.styles and not (
+                key == "mix_style" and value == ""):
+            return (f"unknown style {value!r}; this model knows: {', '.join(self.styles)}"
+                    + (" ('' = no mix)" if key == "mix_style" else ""))
+        return None
 
     def _on_set_parameters(self, parameters) -> SetParametersResult:
-        """Types and ranges are checked by the descriptors before this runs; styles here."""
         changes = {p.name: p.value for p in parameters if p.name in DYNAMIC}
-        for key in ("target_style", "mix_style"):
-            if key in changes and (reason := self._style_problem(key, changes[key])):
+        for key, value in changes.items():
+            if reason := self._problem(key, value):
                 return SetParametersResult(successful=False, reason=reason)
         self.settings.update(changes)
         self._apply(changes)
@@ -242,8 +252,8 @@ class Stylizer(PlayerNode):
             raise Dropped("non_finite", f"NaN or infinite positions for {bad}")
         if p.last_stamp_ns is not None and stamp_ns <= p.last_stamp_ns:
             reason = "duplicate_stamp" if stamp_ns == p.last_stamp_ns else "out_of_order"
-            raise Dropped(reason, f"stamp {stamp_ns * 1e-9:.9f} s is not after the previous frame's "
-                          f"{p.last_stamp_ns * 1e-9:.9f} s")
+            raise Dropped(reason, f"stamp {seconds(stamp_ns)} s is not after the previous frame's "
+                          f"{seconds(p.last_stamp_ns)} s")
         return positions
 
     def _use_names(self, p: Performer, names) -> None:
@@ -293,9 +303,10 @@ class Stylizer(PlayerNode):
 
     def _markers(self, p: Performer, rotations: np.ndarray, root: np.ndarray, stamp) -> MarkerArray:
         """The stylized skeleton's bones below the pelvis as one LINE_LIST, in REP-103 axes."""
-        session = p.session
-        motion = Motion.from_rotations(session.skeleton, rotations[None], root[None], session.fps)
-        ends = to_ros(motion.global_positions()[0][self._bones])
+        skeleton = p.session.skeleton
+        offsets = skeleton.offsets.copy()
+        offsets[skeleton.pelvis] = root
+        ends = to_ros(forward_kinematics(skeleton, rotations, offsets)[1][self._bones])
         marker = Marker(ns=p.prefix or NAME, id=0, type=Marker.LINE_LIST, action=Marker.ADD,
                         points=[Point(x=x, y=y, z=z) for x, y, z in ends.tolist()])
         marker.header.stamp = stamp
@@ -349,6 +360,11 @@ class Stylizer(PlayerNode):
 def stamp_seconds(stamp: Time) -> float:
     """A header stamp as the session's float seconds (offline replays convert stamps the same way)."""
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def seconds(ns: int) -> str:
+    """Nanoseconds as exact decimal seconds (a float would blur the last digits)."""
+    return f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}"
 
 
 def main(args=None) -> int:

@@ -1,0 +1,97 @@
+"""Helpers for tests that run nodes as real processes and talk to them over DDS from a test node
+(the launch_testing pattern, by hand)."""
+
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+
+TIMEOUT = 60.0  # generous bound for readiness on a loaded machine; never a timing assertion
+BEST_EFFORT = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+
+def start_node(name, env, log=None, **params):
+    """``python -m motion_style_ros.nodes.<name> --ros-args -p key:=value ...`` as a process;
+    its output goes to the file ``log`` if given, else to pipes."""
+    cmd = [sys.executable, "-m", f"motion_style_ros.nodes.{name}", "--ros-args"]
+    for key, value in params.items():
+        cmd += ["-p", f"{key}:={value}"]
+    out = subprocess.PIPE if log is None else open(log, "w")
+    return subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL, stdout=out,
+                            stderr=subprocess.PIPE if log is None else subprocess.STDOUT, text=True)
+
+
+def stop(proc, timeout=20.0):
+    """SIGINT (a clean shutdown), then kill if it hangs; the exit code."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    return proc.returncode
+
+
+def stamps(messages):
+    """header.stamp of each message in nanoseconds."""
+    return np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in messages])
+
+
+class Listener:
+    """A test node in its own context: subscribe, publish, call services, spin until a condition
+    holds."""
+
+    def __init__(self, name="test_listener"):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.received: dict[str, list] = {}
+        self.subscriptions = {}
+
+    def subscribe(self, topic, msg_type=JointState, qos=BEST_EFFORT):
+        """The list that every message on ``topic`` is appended to."""
+        self.received[topic] = []
+        self.subscriptions[topic] = self.node.create_subscription(
+            msg_type, topic, self.received[topic].append, qos)
+        return self.received[topic]
+
+    def spin_until(self, condition, what, timeout=TIMEOUT, procs=()):
+        deadline = time.monotonic() + timeout
+        while not condition():
+            for proc in procs:
+                if proc.poll() not in (None, 0):
+                    output = proc.stderr.read() if proc.stderr else ""
+                    pytest.fail(f"{what}: process exited with {proc.returncode}: {output}")
+            if time.monotonic() > deadline:
+                pytest.fail(f"timed out waiting for {what}")
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def spin_while_running(self, proc):
+        """Spin until ``proc`` exits by itself, then a little longer for messages still in flight."""
+        deadline = time.monotonic() + TIMEOUT
+        while proc.poll() is None and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+        for _ in range(20):
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def call(self, client, request, procs=()):
+        """A service's response (waits for the service to appear, then for the answer)."""
+        self.spin_until(client.service_is_ready, f"service {client.srv_name}", procs=procs)
+        future = client.call_async(request)
+        self.spin_until(future.done, f"an answer from {client.srv_name}", procs=procs)
+        return future.result()
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

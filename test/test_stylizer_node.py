@@ -1,0 +1,365 @@
+"""The stylizer node as a real process over DDS (the launch_testing pattern, by hand).
+
+One stylizer serves three performers (p1, p2; p3 gets the bad input) with a random-weight model and
+reliable QoS, so nothing is lost. A test node replays an MCAP bag written from a CMU take into it,
+changes parameters through the real ``~/set_parameters`` service, calls ``~/reset``, and checks
+every output against an offline :class:`RecurrentSession` fed the same frames and stamps.
+"""
+
+import time
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers import TIMEOUT, Listener, start_node, stamps, stop
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import Marker, MarkerArray
+
+from motion_style_ros.core.motion import forward_kinematics
+from motion_style_ros.io import bags
+from motion_style_ros.io.joint_state import JointStateLayout, to_ros
+from motion_style_ros.nodes.bvh_player import load
+from motion_style_ros.nodes.stylizer import stamp_seconds
+from motion_style_ros.runtime.session import RecurrentSession
+
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+CMU_CLIP = "cmu/data/02/02_02.bvh"  # a walk at 120 Hz
+FPS = 120.0
+FRAMES = 240
+T0 = 1_600_000_000 * 10**9  # ns
+PERIOD = round(1e9 / FPS)
+CHUNK = 6
+PERFORMERS = ("p1", "p2", "p3")
+LAYOUT = JointStateLayout.canonical()
+RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    from motion_style_ros.training.recurrent import export_random_model
+
+    path = tmp_path_factory.mktemp("model") / "style_erd.onnx"
+    export_random_model(path, STYLES, seed=0)
+    return path
+
+
+@pytest.fixture(scope="module")
+def bag(datasets, tmp_path_factory):
+    """A CMU walk retargeted to the canonical skeleton, in the canonical layout, as an MCAP bag."""
+    values, fps = load(str(datasets / CMU_CLIP), LAYOUT)
+    values = np.ascontiguousarray(values)
+    assert fps == FPS
+    path = tmp_path_factory.mktemp("bag") / "walk"
+    bags.write_joint_states(path, [bags.JointStateRecord(T0 + k * PERIOD, LAYOUT.names, values[k])
+                                   for k in range(FRAMES)], topic="/joint_states")
+    return path
+
+
+@pytest.fixture(scope="module")
+def recorded(bag):
+    """The bag's frames as ``(stamp ns, positions)``."""
+    return [(r.stamp_ns, r.positions) for r in bags.read_joint_states(bag)]
+
+
+class Rig:
+    """The test node wired to the stylizer: a reliable input publisher and output subscriptions
+    per performer, the markers and trajectory of p1, diagnostics, and the two services."""
+
+    def __init__(self, proc):
+        self.proc = proc
+        self.listener = Listener("stylizer_test")
+        node = self.listener.node
+        self.inputs = {p: node.create_publisher(JointState, f"{p}/joint_states", RELIABLE)
+                       for p in PERFORMERS}
+        self.states = {p: self.listener.subscribe(f"{p}/stylized/joint_states", qos=RELIABLE)
+                       for p in PERFORMERS}
+        self.trajectories = self.listener.subscribe("p1/stylized/trajectory", JointTrajectory, RELIABLE)
+        self.markers = self.listener.subscribe("p1/stylized/markers", MarkerArray, RELIABLE)
+        self.diagnostics = self.listener.subscribe("/diagnostics", DiagnosticArray, QoSProfile(depth=100))
+        self.set_client = node.create_client(SetParameters, "/stylizer/set_parameters")
+        self.reset_client = node.create_client(Trigger, "/stylizer/reset")
+        self.spin_until(lambda: all(pub.get_subscription_count() for pub in self.inputs.values())
+                        and all(sub.get_publisher_count()
+                                for sub in self.listener.subscriptions.values()), "the stylizer")
+
+    def spin_until(self, condition, what):
+        self.listener.spin_until(condition, what, procs=[self.proc])
+
+    def send(self, performer, frames, outputs=None):
+        """Publish ``(stamp ns, positions)`` frames and wait for ``outputs`` (default: one per
+        frame) more stylized states."""
+        got = self.states[performer]
+        expected = len(got) + (len(frames) if outputs is None else outputs)
+        for stamp_ns, positions in frames:
+            self.inputs[performer].publish(message(stamp_ns, LAYOUT.names, positions))
+        self.spin_until(lambda: len(got) >= expected, f"{expected} stylized states of {performer}")
+
+    def set(self, **values):
+        request = SetParameters.Request(
+            parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
+        return self.listener.call(self.set_client, request, procs=[self.proc]).results
+
+    def reset(self):
+        return self.listener.call(self.reset_client, Trigger.Request(), procs=[self.proc])
+
+    def status(self, performer, frames_in):
+        """The diagnostics of ``performer`` once it has counted ``frames_in`` input frames."""
+        def find():
+            for array in reversed(self.diagnostics):
+                for status in array.status:
+                    values = {kv.key: kv.value for kv in status.values}
+                    if status.name.endswith(f"/{performer}/joint_states") \
+                            and int(values["frames_in"]) == frames_in:
+                        return values
+            return None
+
+        self.spin_until(lambda: find() is not None, f"diagnostics of {performer}")
+        return find()
+
+
+@pytest.fixture(scope="module")
+def stylizer(model, ros_env, tmp_path_factory):
+    log = tmp_path_factory.mktemp("stylizer") / "stylizer.log"
+    proc = start_node("stylizer", ros_env, log=log, model=model, performers=list(PERFORMERS),
+                      input_fps=FPS, qos_reliability="reliable", qos_depth=1000,
+                      trajectory_points=CHUNK, publish_markers="true")
+    rig = Rig(proc)
+    rig.log = log
+    yield rig
+    rig.listener.close()
+    stop(proc)
+    print(log.read_text())  # shown by pytest when a test fails
+
+
+@pytest.fixture
+def rig(stylizer):
+    """The stylizer at its default controls, every stream reset, nothing received yet."""
+    assert all(r.successful for r in stylizer.set(target_style="normal", alpha=1.0, mix_style="",
+                                                   mix_weight=0.0))
+    assert stylizer.reset().success
+    for received in stylizer.listener.received.values():
+        received.clear()
+    return stylizer
+
+
+def message(stamp_ns, names, positions):
+    msg = JointState(name=list(names), position=[float(v) for v in positions])
+    msg.header.stamp = Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    return msg
+
+
+def offline(model, frames, controls=None):
+    """What a fresh session makes of ``frames``: per frame (JointState positions, rotations, root);
+    ``controls[k](session)`` runs before frame k."""
+    session = RecurrentSession(model, 1, FPS)
+    out = []
+    for k, (stamp_ns, positions) in enumerate(frames):
+        if controls and k in controls:
+            controls[k](session)
+        q, r = session.step(*LAYOUT.decode(LAYOUT.names, positions),
+                            stamp_seconds(Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)))
+        out.append((LAYOUT.encode(q, r), q, r))
+    return out
+
+
+def positions(messages):
+    return np.array([m.position for m in messages])
+
+
+def difference(a, b):
+    """Largest difference of two position arrays, angles compared modulo 2 pi."""
+    d = np.asarray(a) - np.asarray(b)
+    d[..., LAYOUT.angular] = np.mod(d[..., LAYOUT.angular] + np.pi, 2 * np.pi) - np.pi
+    return float(np.abs(d).max())
+
+
+def check_trajectory_chunk(msg, names):
+    """What ros2_control's JointTrajectoryController checks before it accepts a trajectory
+    (joint_trajectory_controller.cpp, validate_trajectory_msg)."""
+    assert list(msg.joint_names) == names and msg.points
+    start = msg.header.stamp
+    assert (start.sec, start.nanosec) == (0, 0)  # start on receipt: never "ends in the past"
+    times = np.array([p.time_from_start.sec * 10**9 + p.time_from_start.nanosec for p in msg.points])
+    assert times[0] > 0 and np.all(np.diff(times) > 0)  # strictly increasing
+    for p in msg.points:
+        assert len(p.positions) == len(names)
+        assert len(p.velocities) in (0, len(names)) and len(p.accelerations) in (0, len(names))
+        assert len(p.effort) == 0  # effort only for effort-commanded joints
+    assert not np.any(np.abs(msg.points[-1].velocities) > np.finfo(np.float32).eps)  # at rest at the end
+    return times
+
+
+def test_a_replayed_bag_is_stylized_frame_for_frame(rig, bag, recorded, model):
+    for _, _, data in bags.read_raw(bag):  # the recorded bytes, as a bag player sends them
+        rig.inputs["p1"].publish(data)
+    rig.spin_until(lambda: len(rig.states["p1"]) >= FRAMES and len(rig.markers) >= FRAMES
+                   and len(rig.trajectories) >= FRAMES // CHUNK, "every output of the bag's frames")
+    got = rig.states["p1"]
+    assert len(got) == FRAMES and len(rig.markers) == FRAMES and len(rig.trajectories) == FRAMES // CHUNK
+    assert stamps(got).tolist() == [s for s, _ in recorded]
+    assert all(list(m.name) == LAYOUT.names for m in got)
+    expected = offline(model, recorded)
+    assert difference(positions(got), [e for e, _, _ in expected]) < 1e-5
+    assert not rig.states["p2"] and not rig.states["p3"]
+
+    # Trajectory chunks: valid for the controller, one point per frame with the frames' spacing,
+    # the same poses as the states but with angles unwrapped (no 2 pi jumps within or between).
+    points = []
+    for k, chunk in enumerate(rig.trajectories):
+        times = check_trajectory_chunk(chunk, LAYOUT.names)
+        frame_stamps = stamps(got[k * CHUNK:(k + 1) * CHUNK])
+        assert np.array_equal(times - times[0], frame_stamps - frame_stamps[0])
+        points += [p.positions for p in chunk.points]
+    points = np.array(points)
+    assert difference(points, positions(got)) < 1e-9
+    steps = np.abs(np.diff(points[:, LAYOUT.angular], axis=0)).max()
+    wrapped_steps = np.abs(np.diff(positions(got)[:, LAYOUT.angular], axis=0)).max()
+    print(f"largest per-frame angle step: trajectory {steps:.3f} rad, wrapped JointState "
+          f"{wrapped_steps:.3f} rad")
+    assert steps < 0.5 < wrapped_steps  # this walk crosses +-pi: the unwrapping is needed
+
+    # Markers: the stylized skeleton's bones, from FK, in REP-103 axes.
+    skeleton = RecurrentSession(model).skeleton
+    bones = [(skeleton.parents[j], j) for j in range(skeleton.pelvis + 1, skeleton.n_joints)]
+    for array, (_, q, r) in zip(rig.markers, expected):
+        (marker,) = array.markers
+        assert marker.type == Marker.LINE_LIST and marker.header.frame_id == "world"
+        offsets = skeleton.offsets.copy()
+        offsets[skeleton.pelvis] = r
+        joints = to_ros(forward_kinematics(skeleton, q, offsets)[1])
+        ends = np.array([[p.x, p.y, p.z] for p in marker.points])
+        assert np.abs(ends - joints[np.ravel(bones)]).max() < 1e-6
+    assert stamps([a.markers[0] for a in rig.markers]).tolist() == stamps(got).tolist()
+
+
+def test_two_performers_in_one_node_are_independent(rig, recorded, model):
+    a = recorded[:120]
+    b = [(stamp + 7 * 10**9 + 3_000_000, values) for stamp, values in recorded[120:]]  # out of step
+    for fa, fb in zip(a, b):
+        rig.inputs["p1"].publish(message(fa[0], LAYOUT.names, fa[1]))
+        rig.inputs["p2"].publish(message(fb[0], LAYOUT.names, fb[1]))
+    rig.spin_until(lambda: len(rig.states["p1"]) >= len(a) and len(rig.states["p2"]) >= len(b),
+                   "both performers' outputs")
+    for performer, frames in (("p1", a), ("p2", b)):
+        got = rig.states[performer]
+        assert stamps(got).tolist() == [s for s, _ in frames]
+        assert difference(positions(got), [e for e, _, _ in offline(model, frames)]) < 1e-5
+
+
+def test_parameters_change_live_and_bad_values_are_rejected(rig, recorded, model):
+    frames = recorded[:180]
+    rig.send("p1", frames[:60])
+    results = rig.set(target_style="elderly", alpha=0.5, mix_style="active", mix_weight=0.25,
+                      latent_seed=3)
+    assert all(r.successful for r in results), [r.reason for r in results]
+    rig.send("p1", frames[60:120])
+
+    rejected = [
+        ("target_style", "sad", "unknown style 'sad'; this model knows: " + ", ".join(STYLES)),
+        ("mix_style", "happy", "unknown style 'happy'; this model knows: active"),
+        ("alpha", 1.5, "alpha out of range"),  # the descriptor's range rejects it first
+        ("alpha", "high", "alpha must be of type double, got string 'high'"),
+        ("latent_seed", 2.5, "latent_seed must be of type integer, got double 2.5"),
+        ("mix_weight", -0.1, "Min: 0.0, Max: 1.0"),
+        ("latent_seed", -1, "latent_seed out of range"),
+        ("model", "other.onnx", "read-only"),
+    ]
+    for name, value, reason in rejected:
+        (result,) = rig.set(**{name: value})
+        assert not result.successful and reason in result.reason, (name, value, result.reason)
+    rig.send("p1", frames[120:])
+
+    def change(session):
+        session.set_style("elderly")
+        session.set_alpha(0.5)
+        session.set_mix("active", 0.25)
+
+    got = positions(rig.states["p1"])
+    expected = [e for e, _, _ in offline(model, frames, {60: change})]
+    unchanged = [e for e, _, _ in offline(model, frames)]
+    assert difference(got, expected) < 1e-5  # took effect at frame 60; the rejected ones did nothing
+    assert difference(got[60:], unchanged[60:]) > 1e-3
+
+
+def test_reset_starts_every_stream_afresh(rig, recorded, model):
+    frames = recorded[:120]
+    rig.send("p1", frames[:60])
+    response = rig.reset()
+    assert response.success and "reset 3 performer(s)" in response.message
+    rig.send("p1", frames[60:])
+    got = positions(rig.states["p1"])[60:]
+    assert difference(got, [e for e, _, _ in offline(model, frames[60:])]) < 1e-5
+    assert difference(got, [e for e, _, _ in offline(model, frames)][60:]) > 1e-3
+
+
+def test_bad_input_is_dropped_and_counted_and_the_next_good_frame_is_stylized(rig, recorded, model):
+    names = LAYOUT.names
+
+    def good(k, shift=0):
+        return T0 + k * PERIOD + shift, recorded[k % FRAMES][1]
+
+    sent = [good(k) for k in range(20)]
+    rig.send("p3", sent)
+    stamp, values = good(20)
+    nan, inf = values.copy(), values.copy()
+    nan[7], inf[0] = np.nan, np.inf
+    renamed = ["spine_rx" if n == "Spine_rx" else n for n in names]
+    bad = [
+        message(stamp, names, values[:-1]),  # mismatched lengths
+        message(stamp, names, nan),
+        message(stamp, names, inf),
+        message(stamp, renamed, values),  # an unknown name (and a missing one)
+        message(stamp, names[1:], values[1:]),  # a missing name
+        message(sent[-1][0], names, values),  # the previous frame's stamp again
+        message(sent[10][0], names, values),  # a stamp from the past
+    ]
+    for msg in bad:
+        rig.inputs["p3"].publish(msg)
+    sent.append((stamp, values))
+    rig.send("p3", sent[-1:])
+
+    burst = [good(k) for k in range(21, 1021)]  # published as fast as the test can
+    rig.send("p3", burst)
+    gap = [good(k, shift=5 * 10**9) for k in range(1021, 1025)]  # 5 s without frames, by stamps
+    rig.send("p3", gap)
+    before = time.time_ns()
+    rig.send("p3", [(0, recorded[0][1])])  # unstamped: stamped with the node's clock
+    after = time.time_ns()
+    sent += burst + gap
+
+    got = rig.states["p3"]
+    assert stamps(got[:-1]).tolist() == [s for s, _ in sent]
+    now = int(stamps(got[-1:])[0])
+    assert before <= now <= after
+    expected = offline(model, sent + [(now, recorded[0][1])])
+    assert difference(positions(got), [e for e, _, _ in expected]) < 1e-5
+
+    counts = rig.status("p3", frames_in=len(sent) + len(bad) + 1)
+    assert {k: int(v) for k, v in counts.items() if k.startswith("dropped")} == {
+        "dropped": 7, "dropped_mismatched_lengths": 1, "dropped_non_finite": 2,
+        "dropped_bad_names": 2, "dropped_duplicate_stamp": 1, "dropped_out_of_order": 1,
+        "dropped_invalid_frame": 0}
+    assert int(counts["frames_out"]) == len(got)
+    assert float(counts["latency_p99_ms"]) >= float(counts["latency_p50_ms"]) > 0
+    assert counts["model"] == str(model) and counts["backend"] == "recurrent"
+    assert rig.proc.poll() is None
+    log = rig.log.read_text()
+    assert log.count("dropped a JointState (non finite)") == 1, log  # one warning per reason
+
+
+@pytest.mark.parametrize("params, expected", [
+    ({"backend": "stgcn"}, "parameter backend is 'stgcn'; allowed: recurrent"),
+    ({"target_style": "sad"}, "unknown style 'sad'; this model knows: active"),
+    ({"qos_reliability": "sometimes"}, "allowed: best_effort, reliable"),
+])
+def test_bad_start_parameters_stop_the_node_with_one_line(start, model, params, expected):
+    proc = start("stylizer", model=model, **params)
+    assert proc.wait(TIMEOUT) == 2
+    err = proc.stderr.read().strip().splitlines()
+    assert len(err) == 1 and "ERROR" in err[0] and expected in err[0], err
