@@ -40,6 +40,7 @@ AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 # Core (x, y, z) -> ROS (z, x, y): row i of C picks the core axis that becomes ROS axis i.
 _CORE_TO_ROS = [2, 0, 1]
 _ROS_TO_CORE = [1, 2, 0]
+_PELVIS = canonical().pelvis  # looked up once: building the skeleton costs more than a frame's maths
 
 
 def to_ros(v: np.ndarray) -> np.ndarray:
@@ -81,7 +82,7 @@ def _tpose_vector() -> np.ndarray:
 
 def _encode_default(rotations: np.ndarray, root_positions: np.ndarray) -> np.ndarray:
     """``(..., 22, 4)`` local rotations and ``(..., 3)`` pelvis positions -> ``(..., 66)``."""
-    pelvis = canonical().pelvis
+    pelvis = _PELVIS
     hips = rot.multiply(rotations[..., 0, :], rotations[..., pelvis, :])  # joint_Root is static
     quats = np.concatenate([hips[..., None, :], rotations[..., pelvis + 1:, :]], axis=-2)
     angles = _euler_xyz(_quat_to_ros(rot.normalize(quats)))
@@ -91,7 +92,7 @@ def _encode_default(rotations: np.ndarray, root_positions: np.ndarray) -> np.nda
 
 
 def _decode_default(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    pelvis = canonical().pelvis
+    pelvis = _PELVIS
     angles = values[..., 3:].reshape(values.shape[:-1] + (-1, 3))
     quats = _quat_to_core(rot.from_euler(angles, "XYZ"))
     rotations = rot.identity(values.shape[:-1] + (pelvis,))

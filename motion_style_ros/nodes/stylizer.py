@@ -102,6 +102,8 @@ class Performer:
 
 
 class Stylizer(PlayerNode):
+    """The node: parameters, one :class:`Performer` per prefix, ``~/reset``, diagnostics."""
+
     def __init__(self) -> None:
         super().__init__(NAME)
         prefixes = self.param("performers", [""], "topic prefix of each performer (one session each): "
@@ -120,8 +122,8 @@ class Stylizer(PlayerNode):
         depth = self.param("qos_depth", 10, "QoS history depth of the streams", 1, 1000)
         self.trajectory_points = self.param("trajectory_points", 6, "points per JointTrajectory "
                                             "chunk", 1, 120)
-        publish_markers = self.param("publish_markers", False, "publish the stylized skeleton "
-                                          "as a visualization_msgs/MarkerArray on stylized/markers")
+        publish_markers = self.param("publish_markers", False, "publish the stylized skeleton as "
+                                     "a visualization_msgs/MarkerArray on stylized/markers")
         threads = self.param("threads", 1, "ONNX Runtime threads per performer", 1, 16)
         if backend not in BACKENDS:
             raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
