@@ -23,9 +23,12 @@ def start_node(name, env, log=None, **params):
     cmd = [sys.executable, "-m", f"motion_style_ros.nodes.{name}", "--ros-args"]
     for key, value in params.items():
         cmd += ["-p", f"{key}:={value}"]
-    out = subprocess.PIPE if log is None else open(log, "w")
-    return subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL, stdout=out,
-                            stderr=subprocess.PIPE if log is None else subprocess.STDOUT, text=True)
+    if log is None:
+        return subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+    with open(log, "w") as out:  # the process keeps its own copy of the file
+        return subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL, stdout=out,
+                                stderr=subprocess.STDOUT, text=True)
 
 
 def stop(proc, timeout=20.0):

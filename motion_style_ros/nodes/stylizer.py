@@ -62,7 +62,7 @@ class Dropped(Exception):
 class Performer:
     """One performer's topics, session, counters and what its outputs continue from."""
 
-    def __init__(self, node: "Stylizer", prefix: str, session: RecurrentSession, qos: QoSProfile,
+    def __init__(self, node: Stylizer, prefix: str, session: RecurrentSession, qos: QoSProfile,
                  markers: bool) -> None:
         self.prefix = prefix
         self.session = session
@@ -230,7 +230,8 @@ class Stylizer(PlayerNode):
                 raise Dropped("invalid_frame", str(exc)) from None
         except Dropped as drop:
             p.counts[f"dropped_{drop.reason}"] += 1
-            self._warn(drop.reason, f"{p.input}: dropped a JointState ({drop.reason.replace('_', ' ')}): {drop}")
+            what = drop.reason.replace("_", " ")
+            self._warn(drop.reason, f"{p.input}: dropped a JointState ({what}): {drop}")
             return
         p.last_stamp_ns = stamp_ns
         self._use_names(p, msg.name)
