@@ -326,6 +326,9 @@ class Trainer:
     ``losses.jsonl``). Every iteration draws its windows from a generator seeded by (seed,
     iteration), so a resumed run repeats what an uninterrupted one would have done."""
 
+    LABEL = "style-erd"  # the progress bar's
+    PARTS = ("model", "ema", "dis", "opt_g", "opt_d")  # what a checkpoint holds besides the state
+
     def __init__(self, cfg: Config, data: Data, checkpoints: Path = CHECKPOINTS,
                  progress: bool = True) -> None:
         self.cfg, self.data, self.progress = cfg, data, progress
@@ -363,9 +366,8 @@ class Trainer:
     def save(self) -> None:
         self.dir.mkdir(parents=True, exist_ok=True)
         tmp = self.checkpoint.with_suffix(".tmp")
-        torch.save({**self._settings(), "model": self.model.state_dict(), "ema": self.ema.state_dict(),
-                    "dis": self.dis.state_dict(), "opt_g": self.opt_g.state_dict(),
-                    "opt_d": self.opt_d.state_dict(), "state": self.state}, tmp)
+        torch.save({**self._settings(), **{name: getattr(self, name).state_dict() for name in self.PARTS},
+                    "state": self.state}, tmp)
         tmp.replace(self.checkpoint)
 
     def resume(self) -> bool:
@@ -378,7 +380,7 @@ class Trainer:
                 f"{self.checkpoint} was made with other settings or data; train without --resume "
                 "to start afresh, or use another --seed"
             )
-        for name in ("model", "ema", "dis", "opt_g", "opt_d"):
+        for name in self.PARTS:
             getattr(self, name).load_state_dict(saved[name])
         self.state = saved["state"]
         if self.log.exists():
@@ -469,7 +471,7 @@ class Trainer:
             return state["train_seconds"] + time.perf_counter() - started
 
         last_save, recent = time.perf_counter(), []
-        bar = tqdm(total=iterations, initial=state["iteration"], desc="style-erd", unit="it",
+        bar = tqdm(total=iterations, initial=state["iteration"], desc=self.LABEL, unit="it",
                    disable=not self.progress, mininterval=_MININTERVAL)
         while state["iteration"] < last_iteration and spent() < budget_s:
             self.model.train()

@@ -1,0 +1,299 @@
+"""The windowed ST-GCN stylizer as a stream: frames in, frames out, ``lookahead`` frames later.
+
+:class:`WindowedSession` has the interface and stream handling of
+:class:`~motion_style_ros.runtime.session.RecurrentSession` (rates and resampling, gaps, the root
+trajectory, controls blended over ``blend_seconds``, bad frames rejected); only the model step
+differs:
+
+- **Windows.** The generator sees the last ``window`` model frames (a new performer's history is
+  filled with its first frame) and runs every ``hop`` frames for all performers together, and
+  also whenever a frame is due that no window has covered yet (``lookahead < hop - 1``, or just
+  after a reset). Its outputs are blended by overlap-add (:mod:`motion_style_ros.core.overlap_add`):
+  every window fades in and out over the ``lookahead + 1`` frames it contributes to, so no seam
+  shows where one window takes over from the next.
+- **Latency.** Frame ``t`` is emitted when frame ``t + lookahead`` comes in: the windows see
+  ``lookahead`` frames of its future. More lookahead means more context and more windows to
+  blend (smoother, closer to offline quality), at ``lookahead / fps`` seconds of delay. After a
+  start or a reset, the performer's first stylized frame is held for ``lookahead`` frames.
+- **Style codes.** Each performer has a code per style from the mapping network and its latent
+  seed (:func:`latent`: the same seed gives the same code on every machine), or a reference clip's
+  code through the style encoder (:meth:`set_reference`). The code a window gets is the codes
+  mixed by the style weights (style and mix), then moved from the window's own style code (the
+  style encoder on the input window) towards it by alpha: alpha 0 reproduces the input. Seed and
+  reference changes blend over ``blend_seconds`` like style and alpha.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from motion_style_ros.core.features import FEATURE_VERSION, StreamDecoder, StreamEncoder, encode
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.overlap_add import OverlapAdd
+from motion_style_ros.core.resample import resample
+from motion_style_ros.core.skeleton import canonical
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime.controls import Controls, smoothstep, unit_interval
+from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
+from motion_style_ros.runtime.session import RecurrentSession, _positive
+
+DEFAULT_MODEL = "stgcn.onnx"
+ROOT_MOTION = [0, 1, 3]  # the root block's velocity and yaw-rate columns
+
+
+def latent(seed: int, size: int) -> np.ndarray:
+    """``size`` standard normal numbers from ``seed``, the same on every machine and numpy version:
+    PCG64's raw output (a fixed algorithm, unlike ``Generator.standard_normal``) through Box-Muller."""
+    pairs = (size + 1) // 2
+    raw = np.random.PCG64(_seed(seed)).random_raw(2 * pairs)
+    u = ((raw >> np.uint64(11)).astype(np.float64) + 0.5) / 2.0**53  # in (0, 1)
+    r = np.sqrt(-2.0 * np.log(u[:pairs]))
+    angle = 2.0 * np.pi * u[pairs:]
+    return np.concatenate([r * np.cos(angle), r * np.sin(angle)])[:size]
+
+
+def _seed(seed: int) -> int:
+    """The seed as an int, or a one-line reason why it is not one."""
+    if isinstance(seed, bool) or not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2**63):
+        raise MotionStyleError(f"latent seed must be a whole number from 0 to 2^63 - 1, got {seed!r}")
+    return int(seed)
+
+
+def _softmax(x: np.ndarray) -> np.ndarray:
+    e = np.exp(x - x.max(axis=-1, keepdims=True))
+    return e / e.sum(axis=-1, keepdims=True)
+
+
+class WindowedSession(RecurrentSession):
+    """The windowed stylizer over a stream of ``performers`` performers (see the module docstring).
+
+    ``model``: the generator's file name or path (card and companions beside it); ``window``:
+    frames per window (default: the card's; a multiple of 4); ``hop``: frames between windows;
+    ``lookahead``: output delay in model frames (0 to ``window - 1``); ``latent_seed``: every
+    performer's seed. Until :meth:`set_style`, every performer gets the first style at alpha 1.
+    """
+
+    def __init__(
+        self,
+        model: str | Path = DEFAULT_MODEL,
+        performers: int = 1,
+        input_fps: float | None = None,
+        blend_seconds: float = 0.3,
+        threads: int = 1,
+        gap_seconds: float = 0.5,
+        follow_seconds: float | None = None,
+        window: int | None = None,
+        hop: int = 4,
+        lookahead: int = 16,
+        latent_seed: int = 0,
+    ) -> None:
+        path = model_path(str(model))
+        card = read_card(path)
+        _check_card(card, path)
+        if not (isinstance(performers, (int, np.integer)) and performers >= 1):
+            raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
+        self.window = int(card["window"]) if window is None else window
+        if not (isinstance(self.window, (int, np.integer)) and self.window >= 4 and self.window % 4 == 0):
+            raise MotionStyleError(f"window must be a multiple of 4 frames, at least 4; got {window!r}")
+        if not (isinstance(hop, (int, np.integer)) and 1 <= hop <= self.window):
+            raise MotionStyleError(f"hop must be 1 to {self.window} frames (the window), got {hop!r}")
+        if not isinstance(lookahead, (int, np.integer)):
+            raise MotionStyleError(f"lookahead must be a whole number of frames, got {lookahead!r}")
+        self.hop, self.lookahead = int(hop), int(lookahead)
+        self.card = card
+        self.model = OnnxModel(path, threads)
+        companions = {k: model_path(str(path.with_name(name))) for k, name in card["files"].items()}
+        self.mapping = OnnxModel(companions["mapping"], threads)
+        self.style_encoder = OnnxModel(companions["style_encoder"], threads)
+        self.styles: list[str] = list(card["styles"])
+        self.fps = float(card["fps"])
+        self.performers = int(performers)
+        self.input_fps = self.fps if input_fps is None else _positive(input_fps, "input frame rate")
+        self.latency = self.lookahead / self.fps + max(0.0, 1.0 / self.fps - 1.0 / self.input_fps)
+        self.gap_seconds = _positive(gap_seconds, "gap time")
+        self._follow_gain = (
+            0.0 if follow_seconds is None
+            else 1.0 - np.exp(-1.0 / (self.fps * _positive(follow_seconds, "follow time")))
+        )
+        self.skeleton = canonical()
+        self._controls = Controls(self.styles, self.performers, self.styles[0], blend_seconds)
+        self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
+        self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
+        self._fresh = np.ones(self.performers, dtype=bool)
+        # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
+        layout = card["feature_layout"]
+        self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
+        self._codes_to = np.repeat(self._seed_codes(latent_seed)[None], self.performers, axis=0)
+        self._codes_from = self._codes_to.copy()
+        self._code_progress = np.ones(self.performers)
+        self.restart()
+
+    # --- controls ---------------------------------------------------------------------------
+
+    def set_seed(self, latent_seed: int, performer: int | None = None, mix_seed: int | None = None,
+                 mix_weight: float = 0.0) -> None:
+        """Every style's code from the mapping network and this seed (mixed with ``mix_seed``'s
+        codes by ``mix_weight`` in [0, 1]); drops a reference. Blends over ``blend_seconds``."""
+        which = self._controls.which(performer)
+        codes = self._seed_codes(latent_seed)
+        if mix_seed is not None:
+            w = unit_interval(mix_weight, "seed mix weight")
+            codes = (1.0 - w) * codes + w * self._seed_codes(mix_seed)
+        self._begin_codes(which)
+        self._codes_to[which] = codes
+
+    def set_reference(self, motion: Motion, style: str | None = None, performer: int | None = None
+                      ) -> str:
+        """Move like this recording: the reference clip's style code (style encoder) becomes the
+        target. ``style`` names the clip's style (which encoder head to read); by default the
+        encoder's own classifier recognises it. Sets that style as the target; returns it."""
+        codes, logits = self.reference_codes(motion)
+        k = int(np.argmax(logits)) if style is None else self._controls.style_index(style)
+        which = self._controls.which(performer)
+        self._begin_codes(which)
+        self._codes_to[which, k] = codes[k]
+        self.set_style(self.styles[k], performer)
+        return self.styles[k]
+
+    def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+        """A clip's code under every style's head ``(S, D)`` and the style logits ``(S,)``, or a
+        one-line reason why the clip cannot serve as a reference."""
+        if not isinstance(motion, Motion):
+            raise MotionStyleError(f"a reference must be a Motion, got {type(motion).__name__}")
+        if motion.skeleton.names != self.skeleton.names:
+            raise MotionStyleError(
+                f"reference clip on a skeleton of {motion.skeleton.n_joints} joints "
+                f"({', '.join(motion.skeleton.names[:3])}, ...); it must be on the canonical skeleton "
+                "(retarget it first: motion-style retarget)"
+            )
+        if not (np.isfinite(motion.rotations).all() and np.isfinite(motion.positions).all()):
+            raise MotionStyleError("reference clip has NaN or infinite values")
+        if motion.fps != self.fps:
+            motion = resample(motion, self.fps)
+        if motion.n_frames < self.window:
+            raise MotionStyleError(
+                f"reference clip too short: {motion.n_frames} frames at {self.fps:g} fps; it needs at "
+                f"least {self.window} ({self.window / self.fps:.1f} s)"
+            )
+        features = encode(motion)
+        features = features[: len(features) // 4 * 4][None].astype(np.float32)
+        out = self.style_encoder.run(features=features)
+        return out["codes"][0], out["logits"][0]
+
+    # --- stream -------------------------------------------------------------------------------
+
+    def run(self, motion: Motion, style: str, alpha: float = 1.0) -> Motion:
+        """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``), with
+        the output aligned to the input: the stream is run on past the clip's end (its last frame
+        held) for the latency, and the first outputs, which belong before the clip, are dropped."""
+        delay = round(self.latency * self.input_fps)
+        held = Motion.from_rotations(
+            motion.skeleton, np.concatenate([motion.rotations, np.repeat(motion.rotations[-1:], delay, 0)]),
+            np.concatenate([motion.root_positions, np.repeat(motion.root_positions[-1:], delay, 0)]),
+            motion.fps) if delay else motion
+        out = super().run(held, style, alpha)
+        return Motion.from_rotations(self.skeleton, out.rotations[delay:],
+                                     out.root_positions[delay:], motion.fps)
+
+    def restart(self) -> None:
+        super().restart()
+        self._n = 0  # model frames since the stream started
+        self._last_window = -self.hop
+        self._history = np.zeros((self.performers, self.window, self._n_in), dtype=np.float32)
+        self._ola = OverlapAdd(self.window, self.lookahead, self.performers, self._n_out)
+        self._start = np.zeros(self.performers, dtype=int)  # each performer's first frame
+        self._next = np.zeros(self.performers, dtype=int)  # the next frame each one emits
+        self._held = np.zeros((self.performers, self._n_out))
+
+    def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
+        """One model frame for all performers at stream time ``t``; emits frame ``t - lookahead``."""
+        n, lookahead = self._n, self.lookahead
+        features = self._encoder(q, p)
+        fresh = self._fresh.copy()
+        self._history[:, :-1] = self._history[:, 1:]
+        self._history[:, -1] = features
+        self._ola.shift()
+        if fresh.any():
+            self._decoder.start(*self._encoder.facing(), which=fresh)
+            self._controls.snap(fresh)
+            self._snap_codes(fresh)
+            self._history[fresh] = features[fresh][:, None]
+            self._ola.clear(fresh)
+            self._start[fresh] = self._next[fresh] = n
+        style, alpha = self._controls.advance(1.0 / self.fps)
+        self._advance_codes(1.0 / self.fps)
+        due = np.maximum(n - lookahead, self._start)  # the frame each performer emits now
+        new = due >= self._next
+        slot = due - (n - lookahead)
+        if n - self._last_window >= self.hop or not self._ola.covered(slot)[new].all():
+            self._ola.add(self.model.run(features=self._history, code=self._code(style, alpha))["output"])
+            self._last_window = n
+        frames = self._ola.frame(slot)
+        # performers still in their first lookahead frames hold their first frame (no root motion)
+        still = self._held.copy()
+        still[:, ROOT_MOTION] = 0.0
+        frames = np.where(new[:, None], frames, still)
+        self._held[new] = frames[new]
+        self._next[new] = due[new] + 1
+        self._fresh[:] = False
+        self._n += 1
+        frame = self._decoder(frames)
+        if self._follow_gain:
+            self._decoder.pull(*self._encoder.facing(), self._follow_gain)
+        self._outputs = [*self._outputs[-1:], (t - lookahead / self.fps, *frame)]
+
+    # --- codes --------------------------------------------------------------------------------
+
+    def _seed_codes(self, seed: int) -> np.ndarray:
+        """``(S, D)``: every style's code for one seed."""
+        n = len(self.styles)
+        z = np.repeat(latent(seed, int(self.card["latent_dim"]))[None], n, axis=0).astype(np.float32)
+        return self.mapping.run(z=z, style=np.eye(n, dtype=np.float32))["code"].astype(np.float64)
+
+    def _current_codes(self) -> np.ndarray:
+        w = smoothstep(self._code_progress)[:, None, None]
+        return self._codes_from + w * (self._codes_to - self._codes_from)
+
+    def _begin_codes(self, which: slice | int) -> None:
+        self._codes_from[which] = self._current_codes()[which]
+        self._code_progress[which] = 0.0
+
+    def _snap_codes(self, which: np.ndarray) -> None:
+        self._codes_from[which] = self._codes_to[which]
+        self._code_progress[which] = 1.0
+
+    def _advance_codes(self, seconds: float) -> None:
+        blend = self._controls.blend_seconds
+        step = np.inf if blend == 0 else seconds / blend
+        self._code_progress = np.minimum(self._code_progress + step, 1.0)
+
+    def _code(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        """``(P, D)`` float32 codes for the window in ``_history``: the style weights over each
+        performer's codes, moved from the window's own code by alpha."""
+        target = np.einsum("ps,psd->pd", style.astype(np.float64), self._current_codes())
+        if (alpha >= 1.0).all():
+            return target.astype(np.float32)
+        out = self.style_encoder.run(features=self._history)
+        own = np.einsum("ps,psd->pd", _softmax(out["logits"]), out["codes"])
+        return (own + alpha * (target - own)).astype(np.float32)
+
+
+def _check_card(card: dict, path: Path) -> None:
+    """The card describes a windowed stylizer on the features this package computes."""
+    missing = [k for k in ("kind", "styles", "fps", "window", "latent_dim", "files", "feature_version")
+               if k not in card]
+    if missing:
+        raise MotionStyleError(f"{path.with_suffix('.json')}: model card lacks {', '.join(missing)}")
+    if card["kind"] != "windowed":
+        raise MotionStyleError(f"{path}: a {card['kind']!r} model, not a windowed stylizer")
+    if card.get("skeleton", "canonical") != "canonical":
+        raise MotionStyleError(
+            f"{path}: made for skeleton {card['skeleton']!r}; the session streams the canonical one"
+        )
+    if card["feature_version"] != FEATURE_VERSION:
+        raise MotionStyleError(
+            f"{path}: made for feature version {card['feature_version']}; this package computes "
+            f"version {FEATURE_VERSION} (retrain or update the package)"
+        )
