@@ -44,6 +44,27 @@ def add_parser(subparsers):
     recurrent.add_argument("--out", default=None,
                            help="folder for style_erd.onnx and its card (default: the shipped models/)")
     recurrent.set_defaults(func=run_recurrent)
+    stgcn = targets.add_parser(
+        "stgcn", help="the windowed ST-GCN stylizer (models/stgcn*.onnx)",
+        description="Train the ST-GCN generator, mapping network, style encoder and discriminator "
+                    "(Park et al. 2021) on Bandai dataset-2 train takes, then export the first "
+                    "three to ONNX with the model card. Checkpoints every few minutes to "
+                    "~/.cache/motion_style_ros/checkpoints/stgcn_<seed>/ (with losses.jsonl); "
+                    "--resume continues a stopped run, and the time and iteration budgets count "
+                    "over all resumed runs, so the same command finishes the job.",
+    )
+    stgcn.add_argument("--minutes", type=float, default=100.0,
+                       help="training time budget in minutes, over all resumed runs (default: 100)")
+    stgcn.add_argument("--iterations", type=int, default=None,
+                       help="stop after this many iterations in total (default: no limit)")
+    stgcn.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    stgcn.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
+    stgcn.add_argument("--resume", action="store_true",
+                       help="continue from the checkpoint of this seed if there is one "
+                            "(without it, an earlier run's checkpoint is discarded)")
+    stgcn.add_argument("--out", default=None,
+                       help="folder for stgcn*.onnx and the card (default: the shipped models/)")
+    stgcn.set_defaults(func=run_stgcn)
 
 
 def _training(module: str):
@@ -102,4 +123,28 @@ def run_recurrent(args) -> int:
     print(f"style_erd: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
           f"val reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS); "
           f"ONNX vs torch {card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
+    return 0
+
+
+def run_stgcn(args) -> int:
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.onnx_model import models_dir
+
+    stgcn = _training("stgcn")
+    if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
+        raise MotionStyleError("--minutes must be positive and --iterations at least 1")
+    out = Path(args.out) if args.out else models_dir()
+    command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}" + (
+        f" --iterations {args.iterations}" if args.iterations is not None else "")
+    card = stgcn.train(stgcn.Config(seed=args.seed), out, args.minutes, args.iterations,
+                       args.resume, threads=args.threads, command=command + " --resume")
+    history = card["training"]["history"]
+    val = history["val"][-1]
+    print(f"stgcn: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
+          f"val identity reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation "
+          f"RMS), style encoder accuracy {val['val_style_acc']:.2f}, transfers recognised "
+          f"{val['val_transfer_style_acc']:.2f}; ONNX vs torch "
+          f"{card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
     return 0

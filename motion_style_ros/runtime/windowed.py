@@ -144,6 +144,10 @@ class WindowedSession(RecurrentSession):
         self._begin_codes(which)
         self._codes_to[which] = codes
 
+    def codes(self, performer: int = 0) -> np.ndarray:
+        """``(S, D)``: the performer's code for each style as it is now (mid-blend included)."""
+        return self._current_codes()[self._controls.which(performer)]
+
     def set_reference(self, motion: Motion, style: str | None = None, performer: int | None = None
                       ) -> str:
         """Move like this recording: the reference clip's style code (style encoder) becomes the
@@ -258,7 +262,7 @@ class WindowedSession(RecurrentSession):
 
     def _begin_codes(self, which: slice | int) -> None:
         self._codes_from[which] = self._current_codes()[which]
-        self._code_progress[which] = 0.0
+        self._code_progress[which] = 0.0 if self._controls.blend_seconds else 1.0
 
     def _snap_codes(self, which: np.ndarray) -> None:
         self._codes_from[which] = self._codes_to[which]
