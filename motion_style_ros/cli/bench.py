@@ -28,13 +28,30 @@ def add_parser(subparsers):
                            help="rate of the input stream in Hz (default: 120)")
     recurrent.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     recurrent.set_defaults(func=run_recurrent)
+    nodes = targets.add_parser(
+        "nodes", help="the stylizer node over DDS, end to end",
+        description="Start the stylizer node as its own process (reliable QoS) and stream synthetic "
+                    "walk frames to it from this command's rclpy node, header.stamp = the publish "
+                    "time; report the end-to-end latency (stamp -> arrival of the stylized frame in "
+                    "this node's DDS reader, p50/p99 in ms), the dropped frames, and the stylizer "
+                    "process's CPU use (utime + stime from /proc, in %% of one core) for each input "
+                    "rate with one performer and at the highest rate with several performers.",
+    )
+    nodes.add_argument("--model", default=DEFAULT_MODEL,
+                       help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
+    nodes.add_argument("--rates", default="30,60,120", metavar="HZ,HZ,...",
+                       help="input rates with one performer (default: 30,60,120)")
+    nodes.add_argument("--performers", type=int, default=4,
+                       help="performers at the highest rate, each on its own topics (default: 4)")
+    nodes.add_argument("--seconds", type=float, default=10.0,
+                       help="measured stream time per row in seconds (default: 10)")
+    nodes.set_defaults(func=run_nodes)
 
 
 def run_recurrent(args) -> int:
     import numpy as np
 
     from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.runtime.onnx_model import model_path, models_dir
 
     try:
         counts = [int(n) for n in args.performers.split(",")]
@@ -44,26 +61,11 @@ def run_recurrent(args) -> int:
         ) from None
     if min(counts) < 1 or args.seconds <= 0 or args.input_fps <= 0:
         raise MotionStyleError("--performers, --seconds and --input-fps must be positive")
-    try:
-        path = model_path(args.model)
-    except MotionStyleError as exc:
-        if args.model != DEFAULT_MODEL:
-            raise
-        raise MotionStyleError(
-            f"{exc}; train it with 'motion-style train recurrent', or time another model with "
-            "--model (e.g. a random-weight one from "
-            "motion_style_ros.training.recurrent.export_random_model)"
-        ) from None
-
+    path = _model(args.model)
     budget_us = 1e6 / args.input_fps
     results = {n: _time_steps(path, n, args.seconds, args.input_fps, args.threads) for n in counts}
     session = results[counts[0]][0]
-    trained = session.card.get("training", {}).get("data", "unknown data")
-    print(f"model: {path} ({session.card.get('name', path.stem)}, trained on: {trained})")
-    if "random" in str(trained):
-        shipped = ("" if (models_dir() / DEFAULT_MODEL).is_file()
-                   else f" (models/{DEFAULT_MODEL} does not exist yet)")
-        print(f"note: a random-weight model{shipped}: the timings hold for a model of its size only")
+    _print_model(path, session.card)
     print(f"input: synthetic {args.input_fps:g} Hz stream, {args.seconds:g} s per measurement; model at "
           f"{session.fps:g} Hz; output latency {1000 * session.latency:.1f} ms; "
           f"ONNX Runtime on {args.threads} thread(s)")
@@ -128,3 +130,161 @@ def _largest_real_time(path, seconds: float, input_fps: float, threads: int) -> 
         mid = (lo + hi) // 2
         lo, hi = (mid, hi) if fits(mid) else (lo, mid)
     return lo
+
+
+def _model(name: str):
+    """The model's path; a missing shipped model says how to get one."""
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.onnx_model import model_path
+
+    try:
+        return model_path(name)
+    except MotionStyleError as exc:
+        if name != DEFAULT_MODEL:
+            raise
+        raise MotionStyleError(
+            f"{exc}; train it with 'motion-style train recurrent', or time another model with "
+            "--model (e.g. a random-weight one from "
+            "motion_style_ros.training.recurrent.export_random_model)"
+        ) from None
+
+
+def _print_model(path, card: dict) -> None:
+    """Which model was timed, and whether it is a random-weight stand-in."""
+    from motion_style_ros.runtime.onnx_model import models_dir
+
+    trained = card.get("training", {}).get("data", "unknown data")
+    print(f"model: {path} ({card.get('name', path.stem)}, trained on: {trained})")
+    if "random" in str(trained):
+        shipped = ("" if (models_dir() / DEFAULT_MODEL).is_file()
+                   else f" (models/{DEFAULT_MODEL} does not exist yet)")
+        print(f"note: a random-weight model{shipped}: the timings hold for a model of its size only")
+
+
+def run_nodes(args) -> int:
+    import os
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+
+    from motion_style_ros.cli.live import LiveGraph
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.onnx_model import read_card
+
+    try:
+        rates = [float(r) for r in args.rates.split(",")]
+    except ValueError:
+        raise MotionStyleError(f"--rates takes numbers separated by commas, got {args.rates!r}") from None
+    if min(rates) <= 0 or args.seconds <= 0 or args.performers < 1:
+        raise MotionStyleError("--rates, --seconds and --performers must be positive")
+    path = _model(args.model).resolve()
+    _print_model(path, read_card(path))
+    rows = [(rate, 1) for rate in rates]
+    if args.performers > 1:
+        rows.append((max(rates), args.performers))
+    logs = Path(tempfile.mkdtemp(prefix="motion_style_bench_"))
+    print(f"machine: {os.cpu_count()} cores, load average {_load()} (before); node logs in {logs}")
+    print(f"each row: stylizer process (reliable QoS) <- synthetic walk frames from this process, "
+          f"{NODE_WARMUP:g} s warm-up, {args.seconds:g} s measured")
+    columns = ("rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)", "dropped",
+               "CPU (%)")
+    print(" ".join(f"{c:>10}" for c in columns))
+    with LiveGraph("motion_style_bench", logs) as graph:
+        for rate, performers in rows:
+            latency_ms, sent, cpu = _stream_nodes(graph, path, rate, performers, args.seconds)
+            p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
+            print(f"{rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} {worst:>10.2f} "
+                  f"{sent - len(latency_ms):>10} {cpu:>10.0f}")
+    print(f"load average {_load()} (after); CPU: the stylizer process, % of one core")
+    return 0
+
+
+NODE_WARMUP = 2.0  # s of streaming before measuring: ONNX Runtime's first runs, DDS settling
+NODE_DRAIN = 1.0  # s after the last frame for its output to arrive
+
+
+def _load() -> str:
+    import os
+
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process so far (fields 14 and 15 of /proc/<pid>/stat)."""
+    import os
+
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()  # the command name may hold spaces
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
+    """One row: a fresh stylizer for ``performers`` performers at ``rate`` Hz; returns the latency
+    (ms) of every measured frame that came back, how many were sent, and the stylizer's CPU use
+    (% of one core) over the measured interval."""
+    import time
+
+    import numpy as np
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+
+    from motion_style_ros.cli.live import STARTUP_SECONDS, stamp_ns
+    from motion_style_ros.core.synthetic import synthetic_motion
+    from motion_style_ros.io.joint_state import JointStateLayout
+
+    node = graph.node
+    prefixes = [""] if performers == 1 else [f"performer{k}" for k in range(performers)]
+    proc = graph.start("stylizer", model=str(model), performers=prefixes, input_fps=float(rate),
+                       qos_reliability="reliable", qos_depth=100)
+    reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    topics = [f"{p}/" if p else "" for p in prefixes]
+    publishers = [node.create_publisher(JointState, f"{t}joint_states", reliable) for t in topics]
+    arrivals: list[dict[int, int]] = [{} for _ in topics]  # per performer: stamp -> arrival
+    subscriptions = [
+        node.create_subscription(
+            JointState, f"{t}stylized/joint_states",
+            lambda msg, info, got=got: got.__setitem__(stamp_ns(msg.header.stamp),
+                                                       info["received_timestamp"]),
+            reliable)
+        for t, got in zip(topics, arrivals)]
+    graph.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in publishers)
+                     and all(s.get_publisher_count() >= 1 for s in subscriptions),
+                     f"the stylizer for {performers} performer(s) to start", STARTUP_SECONDS)
+
+    layout = JointStateLayout.canonical()
+    frames = layout.encode_motion(synthetic_motion("walk", rate, 4.0)).tolist()  # looped
+    clock = node.get_clock()
+    sent: list[list[int]] = [[] for _ in topics]  # per performer: stamps sent while measuring
+    start = time.monotonic()
+    measure_from, end = start + NODE_WARMUP, start + NODE_WARMUP + seconds
+    cpu_from: list[tuple[float, float]] = []  # (CPU seconds, wall time) when measuring began
+    count = 0
+
+    def publish() -> None:
+        nonlocal count
+        now = time.monotonic()
+        if now >= end:
+            return
+        if now >= measure_from and not cpu_from:
+            cpu_from.append((_cpu_seconds(proc.pid), now))
+        for publisher, stamps in zip(publishers, sent):
+            msg = JointState(name=layout.names, position=frames[count % len(frames)])
+            msg.header.stamp = clock.now().to_msg()
+            publisher.publish(msg)
+            if now >= measure_from:
+                stamps.append(stamp_ns(msg.header.stamp))
+        count += 1
+
+    timer = node.create_timer(1.0 / rate, publish)
+    graph.spin_until(lambda: time.monotonic() >= end, "the stream", seconds + NODE_WARMUP + 60)
+    cpu = 100 * (_cpu_seconds(proc.pid) - cpu_from[0][0]) / (time.monotonic() - cpu_from[0][1])
+    graph.spin_for(NODE_DRAIN)
+    node.destroy_timer(timer)
+    for publisher in publishers:
+        node.destroy_publisher(publisher)
+    for subscription in subscriptions:
+        node.destroy_subscription(subscription)
+    graph.stop("stylizer")
+    latency = [got[s] - s for stamps, got in zip(sent, arrivals) for s in stamps if s in got]
+    return np.array(latency) / 1e6, sum(map(len, sent)), cpu

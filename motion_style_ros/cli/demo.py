@@ -19,7 +19,6 @@ DEFAULT_MODEL = "style_erd.onnx"
 INPUT, OUTPUT = "joint_states", "stylized/joint_states"
 FPS = 60
 CONTROL_PERIOD = 0.25  # s between two alpha steps of the ramp (the stylizer blends each step)
-STARTUP_SECONDS = 90.0  # loading rclpy and ONNX Runtime in three processes on a busy machine
 SETTLE_SECONDS = 2.0
 
 
@@ -100,7 +99,7 @@ def _stream(model: Path, timeline, seconds: float, out: Path):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
 
-    from motion_style_ros.cli.live import LiveGraph, stamp_ns
+    from motion_style_ros.cli.live import STARTUP_SECONDS, LiveGraph, stamp_ns
     from motion_style_ros.errors import MotionStyleError
 
     first_style, first_alpha = timeline[0][1], timeline[0][2]

@@ -22,6 +22,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from motion_style_ros.errors import MotionStyleError
 
+STARTUP_SECONDS = 90.0  # loading rclpy and ONNX Runtime in node processes on a busy machine
 STOP_SECONDS = 10.0  # SIGINT, then this long to finish (the recorder finalises its bag), then kill
 
 

@@ -1,0 +1,32 @@
+"""``motion-style bench nodes``: a real stylizer process over DDS, measured from this side.
+
+Only the shape and the counts of its table are checked (speed is the bench's to print, not a test's
+to assert); a random-weight model stands in for the shipped one.
+"""
+
+import subprocess
+import sys
+
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+
+
+def test_bench_nodes_measures_every_row(tmp_path, ros_env):
+    from motion_style_ros.training.recurrent import export_random_model
+
+    model = tmp_path / "style_erd.onnx"
+    export_random_model(model, STYLES, seed=0)
+    result = subprocess.run(
+        [sys.executable, "-m", "motion_style_ros.cli.main", "bench", "nodes", "--model", str(model),
+         "--rates", "60", "--performers", "2", "--seconds", "1"],
+        capture_output=True, text=True, timeout=400, env=ros_env,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = result.stdout.splitlines()
+    assert "random-weight model" in result.stdout and "load average" in result.stdout
+    header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["rate", "(Hz)"])
+    rows = [line.split() for line in lines[header + 1:header + 3]]
+    assert [r[:2] for r in rows] == [["60", "1"], ["60", "2"]]
+    for rate, performers, frames, p50, p99, worst, dropped, cpu in rows:
+        assert int(frames) >= 10 * int(performers)  # about 60 per performer
+        assert 0 < float(p50) <= float(p99) <= float(worst)
+        assert 0 <= int(dropped) < int(frames) and float(cpu) > 0
