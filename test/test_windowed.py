@@ -161,6 +161,14 @@ def test_bad_reference_clips_are_rejected_with_a_reason(random_model, walk, data
     assert session.set_reference(walk) in STYLES
 
 
+def test_the_offline_stylizer_streams_clips_through_the_session(identity_model, walk):
+    from motion_style_ros.runtime.offline import stylizer
+
+    out = stylizer("stgcn", str(identity_model))(walk, "elderly")
+    assert out.n_frames == walk.n_frames
+    assert np.abs(out.global_positions() - walk.global_positions()).max() < 1e-5
+
+
 # --- the trained model ---------------------------------------------------------------------------
 
 TRAINED = models_dir() / "stgcn.onnx"
@@ -193,3 +201,4 @@ def test_trained_alpha_zero_reproduces_the_input_closely(walk):
     local = np.linalg.norm(out.global_positions() - out.root_positions[:, None]
                            - (walk.global_positions() - walk.root_positions[:, None]), axis=-1)
     assert local.mean() < 0.05  # metres, joints relative to the pelvis
+

@@ -55,7 +55,7 @@ class StgcnConfig:
 
 def tiny(styles: tuple[str, ...]) -> StgcnConfig:
     """A very small network with the real interface (tests, runtime development)."""
-    return StgcnConfig(styles, window=16, widths=(8, 8, 16), style_dim=8, mapping_hidden=16)
+    return StgcnConfig(styles, window=32, widths=(8, 8, 16), style_dim=8, mapping_hidden=16)
 
 
 class _Graphs(nn.Module):

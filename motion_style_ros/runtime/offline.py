@@ -14,23 +14,34 @@ from motion_style_ros.core.motion import Motion
 Stylizer = Callable[[Motion, str], Motion]
 
 
-def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
-    """The recurrent (Style-ERD) session, one per input frame rate, reset for every clip."""
-    from motion_style_ros.runtime.session import RecurrentSession
-
-    model = model or "style_erd.onnx"
-    RecurrentSession(model, threads=threads)  # fail now, in one line, on a missing or bad model
-    sessions: dict[float, RecurrentSession] = {}
+def _per_rate(session_class, model: str, alpha: float, threads: int) -> Stylizer:
+    """One streaming session per input frame rate, restarted for every clip."""
+    session_class(model, threads=threads)  # fail now, in one line, on a missing or bad model
+    sessions: dict[float, object] = {}
 
     def stylize(source: Motion, target_style: str) -> Motion:
         if source.fps not in sessions:
-            sessions[source.fps] = RecurrentSession(model, input_fps=source.fps, threads=threads)
+            sessions[source.fps] = session_class(model, input_fps=source.fps, threads=threads)
         return sessions[source.fps].run(source, target_style, alpha)
 
     return stylize
 
 
-STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent}
+def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
+    """The recurrent (Style-ERD) session."""
+    from motion_style_ros.runtime.session import RecurrentSession
+
+    return _per_rate(RecurrentSession, model or "style_erd.onnx", alpha, threads)
+
+
+def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
+    """The windowed ST-GCN session: latent seed 0, the default window, hop and lookahead."""
+    from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession
+
+    return _per_rate(WindowedSession, model or DEFAULT_MODEL, alpha, threads)
+
+
+STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent, "stgcn": stgcn}
 
 
 def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
