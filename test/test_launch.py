@@ -1,14 +1,19 @@
-"""launch/stylizer.launch.py against the package it starts, without the launch packages.
+"""launch/stylizer.launch.py against the package it starts.
 
-``launch`` and ``launch_ros`` are not on PyPI, so this reads the launch file's syntax tree: every
-executable it starts is a console script of setup.py, and every parameter it sets or its YAML files
-hold is one the node declares. How the file was run with the real launch sources is in the README.
+``launch`` and ``launch_ros`` are not on PyPI, so the first tests read the launch file's syntax tree:
+every executable it starts is a console script of setup.py, and every parameter it sets or its YAML
+files hold is one the node declares. The last test runs the installed launch file with the real
+launch service; it needs ``launch_ros`` and the package installed in an ament prefix (a ROS 2
+install after ``colcon build``; the README says how it was run here) and skips elsewhere.
 """
 
 import ast
 import re
+import threading
+import time
 from pathlib import Path
 
+import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,3 +75,77 @@ def test_params_files_hold_declared_parameters():
     text = LAUNCH.read_text()
     for name in ("stylizer.yaml", "vmc_bridge.yaml"):
         assert f"[share, 'config', '{name}']" in text
+
+
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+
+
+def test_launch_file_runs_with_the_real_launch_service(tmp_path):
+    pytest.importorskip("launch_ros")
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+    try:
+        share = Path(get_package_share_directory("motion_style_ros"))
+    except PackageNotFoundError:
+        pytest.skip("motion_style_ros is not installed in an ament prefix (AMENT_PREFIX_PATH)")
+    import rclpy
+    from launch import LaunchDescription, LaunchService
+    from launch.actions import IncludeLaunchDescription
+    from launch.launch_description_sources import PythonLaunchDescriptionSource
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter_client import AsyncParameterClient
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import JointState
+    from visualization_msgs.msg import MarkerArray
+
+    from motion_style_ros.training.recurrent import export_random_model
+
+    model = tmp_path / "style_erd.onnx"
+    export_random_model(model, STYLES, seed=0)
+    params = yaml.safe_load((share / "config" / "stylizer.yaml").read_text())
+    params["/**/stylizer"]["ros__parameters"]["blend_seconds"] = 0.7  # set by the file only
+    (tmp_path / "stylizer.yaml").write_text(yaml.safe_dump(params))
+    arguments = {"namespace": "demo", "use_synthetic": "true", "use_vmc": "true", "markers": "true",
+                 "model": str(model), "target_style": "elderly", "alpha": "1",
+                 "params_file": str(tmp_path / "stylizer.yaml")}
+    service = LaunchService()
+    service.include_launch_description(LaunchDescription([IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(str(share / "launch" / "stylizer.launch.py")),
+        launch_arguments=arguments.items())]))
+    seen = {}
+
+    def check():
+        """Runs beside the launch service (which must own the main thread); shuts it down."""
+        context = rclpy.Context()
+        rclpy.init(context=context)
+        node = rclpy.create_node("launch_check", context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        states, markers = [], []
+        node.create_subscription(JointState, "/demo/stylized/joint_states", states.append,
+                                 qos_profile_sensor_data)
+        node.create_subscription(MarkerArray, "/demo/stylized/markers", markers.append,
+                                 qos_profile_sensor_data)
+        client = AsyncParameterClient(node, "/demo/stylizer")
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not (len(states) > 30 and markers
+                                                   and client.services_are_ready()):
+            executor.spin_once(timeout_sec=0.05)
+        names = ["model", "target_style", "alpha", "publish_markers", "blend_seconds"]
+        future = client.get_parameters(names)
+        executor.spin_until_future_complete(future, timeout_sec=30)
+        if future.done():
+            seen["parameters"] = dict(zip(names, (v.string_value or v.double_value or v.bool_value
+                                                  for v in future.result().values)))
+        seen["frames"], seen["markers"] = len(states), len(markers)
+        seen["nodes"] = {f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces()}
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        service.shutdown()
+
+    threading.Thread(target=check, daemon=True).start()
+    assert service.run() == 0  # every process finished cleanly on the shutdown's SIGINT
+    assert {"/demo/stylizer", "/demo/synthetic_performer", "/demo/vmc_bridge"} <= seen["nodes"]
+    assert seen["frames"] > 30 and seen["markers"] > 0
+    assert seen["parameters"] == {"model": str(model), "target_style": "elderly", "alpha": 1.0,
+                                  "publish_markers": True, "blend_seconds": 0.7}
