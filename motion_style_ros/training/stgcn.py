@@ -77,6 +77,7 @@ class Config:
     # loss weights (the paper's are all 1)
     w_adv: float = 1.0
     w_r1: float = 1.0
+    r1_every: int = 4
     w_sty: float = 1.0
     w_ds: float = 1.0  # decays linearly to 0 over ds_iterations
     ds_iterations: int = 4000
@@ -191,26 +192,28 @@ class Trainer(RecurrentTrainer):
         target = (style + torch.from_numpy(rng.integers(1, n_styles, cfg.batch))) % n_styles
         contacts = x[..., _LAYOUT.slices["contact"]]
         code_rng = np.random.default_rng([cfg.seed, 4, iteration])
+        s_trg, s_trg2 = self.target_codes(iteration, target, code_rng, self.mapping, self.encoder)
 
-        # discriminator: real windows of their own style vs transfers to the target style
+        # discriminator: real windows of their own style vs transfers to the target style; the R1
+        # penalty every r1_every iterations with that much more weight (lazy regularisation)
         self.dis.requires_grad_(True)
         with torch.no_grad():
-            s_trg, _ = self.target_codes(iteration, target, code_rng, self.mapping, self.encoder)
             fake, _ = self.full(self.gen(x, s_trg), contacts)
-        x_real = x.clone().requires_grad_(True)
+        lazy = iteration % cfg.r1_every == 0
+        x_real = x.clone().requires_grad_(lazy)
         d_real = _at(self.dis(x_real), style)
-        (grad,) = torch.autograd.grad(d_real.sum(), x_real, create_graph=True)
-        r1 = 0.5 * (grad * self.in_std).pow(2).sum(dim=(1, 2)).mean()  # w.r.t. normalised input
+        r1 = torch.zeros(())
+        if lazy:
+            (grad,) = torch.autograd.grad(d_real.sum(), x_real, create_graph=True)
+            r1 = 0.5 * (grad * self.in_std).pow(2).sum(dim=(1, 2)).mean()  # w.r.t. normalised input
         d_fake = _at(self.dis(fake), target)
         critic = F.softplus(-d_real).mean() + F.softplus(d_fake).mean()
         self.opt_d.zero_grad()
-        (critic + cfg.w_r1 * r1).backward()
+        (critic + cfg.w_r1 * cfg.r1_every * r1).backward()
         self.opt_d.step()
 
         # generator, mapping network, style encoder
         self.dis.requires_grad_(False)
-        code_rng = np.random.default_rng([cfg.seed, 4, iteration])  # the same target codes
-        s_trg, s_trg2 = self.target_codes(iteration, target, code_rng, self.mapping, self.encoder)
         out = self.gen(x, s_trg)
         fake, fake_views = self.full(out, contacts)
         adv = F.softplus(-_at(self.dis(fake), target)).mean()
