@@ -52,9 +52,10 @@ def largest_jump(positions):
 
 
 def test_stepping_equals_direct_onnx_runs(model, clips):
-    """The session is encode -> the ONNX graph with its state carried -> decode, nothing else."""
+    """Without foot locking, the session is encode -> the ONNX graph with its state carried ->
+    decode, nothing else."""
     walk = clips[0]
-    session = RecurrentSession(model)
+    session = RecurrentSession(model, foot_lock=False)
     session.set_style("elderly")
     q, p = stream(session, *frames(walk))
 
@@ -76,6 +77,17 @@ def test_stepping_equals_direct_onnx_runs(model, clips):
     # The stylized root starts where the performer stands, then moves on its own velocities.
     assert np.allclose(p[0, 0, [0, 2]], walk.positions[0, 1, [0, 2]])
     assert np.linalg.norm(p[-1, 0] - p[0, 0]) > 0.5
+
+
+def test_foot_locking_changes_the_legs_only(model, clips):
+    walk = clips[0]
+    free = RecurrentSession(model, foot_lock=False).run(walk, "elderly")
+    locked = RecurrentSession(model).run(walk, "elderly")
+    legs = [walk.skeleton.index(f"{b}_{s}") for b in ("UpperLeg", "LowerLeg", "Foot") for s in "LR"]
+    others = [j for j in range(walk.skeleton.n_joints) if j not in legs]
+    assert np.allclose(locked.rotations[:, others], free.rotations[:, others])
+    assert np.allclose(locked.positions[:, 1], free.positions[:, 1])
+    assert not np.allclose(locked.rotations[:, legs], free.rotations[:, legs])
 
 
 def test_state_carried_across_steps_equals_run(model, clips):

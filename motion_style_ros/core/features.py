@@ -252,6 +252,11 @@ class StreamEncoder:
         self._last, self._fresh[:] = g_pos, False
         return out
 
+    @property
+    def positions(self) -> np.ndarray:
+        """World positions ``(P, J, 3)`` of each performer's last frame."""
+        return self._last
+
     def facing(self) -> tuple[np.ndarray, np.ndarray]:
         """Ground point ``(P, 3)`` (x, 0, z) and heading ``(P,)`` of each performer's last frame:
         where a :class:`StreamDecoder` starts to follow that performer."""

@@ -22,6 +22,8 @@ between calls:
   slower style falls behind); with ``follow_seconds`` set, the integrated ground point and heading
   are pulled towards the input's with that time constant instead, which bounds the drift (the
   stylized avatar keeps up with its performer on average).
+- **Foot locking.** With ``foot_lock`` (the default), feet the input plants stay planted in the
+  output (:mod:`motion_style_ros.core.foot_lock`: causal two-bone leg IK on each model frame).
 - **Controls.** Style, alpha and a second style with a mix weight change between any two
   frames and blend over ``blend_seconds`` (:mod:`motion_style_ros.runtime.controls`).
 - **Bad input.** A frame with the wrong shape or dtype, NaN/Inf or non-unit quaternions raises
@@ -37,6 +39,7 @@ import numpy as np
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.features import FEATURE_VERSION, StreamDecoder, StreamEncoder
+from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
@@ -66,6 +69,7 @@ class RecurrentSession:
         threads: int = 1,
         gap_seconds: float = 0.5,
         follow_seconds: float | None = None,
+        foot_lock: bool = True,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -94,6 +98,7 @@ class RecurrentSession:
         self._controls = Controls(self.styles, self.performers, neutral, blend_seconds)
         self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
+        self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
         self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
         self._fresh = np.ones(self.performers, dtype=bool)
         self.restart()
@@ -191,6 +196,8 @@ class RecurrentSession:
         if fresh.any():
             self._decoder.start(*self._encoder.facing(), which=fresh)
             self._controls.snap(fresh)
+            if self._foot_lock is not None:
+                self._foot_lock.reset(fresh)
         style, alpha = self._controls.advance(1.0 / self.fps)
         out = self.model.run(
             features=features, style=style, alpha=alpha, state=self._state,
@@ -199,6 +206,9 @@ class RecurrentSession:
         self._state = out["state_out"]
         self._fresh[:] = False
         frame = self._decoder(out["output"])
+        if self._foot_lock is not None:
+            ankles = self._encoder.positions[:, self._foot_lock.ankles]
+            frame = self._foot_lock(*frame, ankles), frame[1]
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)
         self._outputs = [*self._outputs[-1:], (t, *frame)]

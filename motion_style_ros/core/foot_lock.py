@@ -1,0 +1,124 @@
+"""Causal foot locking: feet that touch the ground stay where they landed, by two-bone leg IK.
+
+A stylizer changes the legs and the root's speed independently, so a planted foot of the output
+tends to slide. This is the animator's fix, done one frame at a time (no lookahead), after any
+stylizer: a foot is in contact while the *input*'s ankle is low and slow (real capture knows when
+a foot is planted; the stylized output, sliding, does not), and the output's ankle is held: on
+the frame contact starts, its position is recorded; while it lasts, hip and knee are turned (two-bone IK, knee
+bending in its own plane) so that the ankle stays there, and the foot keeps the world orientation
+the stylizer gave it (its heel-toe roll); when contact ends (or the leg would have to stretch more than
+``max_stretch``), the lock fades out over ``release_seconds``. Only the local rotations of the
+upper leg, lower leg and foot change; the root and every other joint are untouched.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.features import CONTACT_HEIGHT, Mask
+from motion_style_ros.core.motion import forward_kinematics
+from motion_style_ros.core.skeleton import Skeleton, canonical
+
+LEGS = (("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R"))
+_EPS = 1e-9
+
+
+class FootLock:
+    """Foot locking for ``performers`` streamed performers at ``fps`` (see the module docstring).
+
+    An input ankle is planted below its features contact height and slower than ``speed`` (m/s;
+    stricter than the features' contact speed, which also counts the heel-off roll, when the
+    ankle itself moves).
+    """
+
+    def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None,
+                 release_seconds: float = 0.3, max_stretch: float = 0.1,
+                 speed: float = 0.3) -> None:
+        self.skeleton = sk = skeleton or canonical()
+        self.fps = float(fps)
+        self._hip, self._knee, self._ankle = (np.array([sk.index(leg[k]) for leg in LEGS]) for k in range(3))
+        self._height = np.array([CONTACT_HEIGHT[sk.names[j]] for j in self._ankle])
+        self._fade = 1.0 / max(release_seconds * self.fps, 1.0)  # weight lost per frame
+        self.max_stretch = max_stretch
+        self.speed = speed
+        self._last = np.full((performers, 2, 3), np.nan)  # input ankle positions of the last frame
+        self._target = np.zeros((performers, 2, 3))  # where a locked ankle stays
+        self._offset = np.zeros((performers, 2, 3))  # target - ankle when the lock was released
+        self._weight = np.zeros((performers, 2))  # 1 locked, fading to 0 after contact
+        self._locked = np.zeros((performers, 2), dtype=bool)
+        self._spent = np.zeros((performers, 2), dtype=bool)
+        self._axis = np.zeros((performers, 2, 3))  # last good knee axis, for a straight leg
+
+    def reset(self, which: Mask = None) -> None:
+        """These performers' next frame starts afresh (no lock carried over a jump)."""
+        which = slice(None) if which is None else which
+        self._last[which] = np.nan
+        self._weight[which] = 0.0
+        self._locked[which] = False
+        self._spent[which] = False
+
+    @property
+    def ankles(self) -> np.ndarray:
+        """Indices of the ankle (foot) joints, left then right: pass the input's positions of these."""
+        return self._ankle
+
+    def __call__(self, rotations: np.ndarray, root_positions: np.ndarray,
+                 input_ankles: np.ndarray) -> np.ndarray:
+        """Local rotations ``(P, J, 4)`` of the output frame with the legs of planted feet locked
+        (a new array); ``input_ankles`` ``(P, 2, 3)``: world positions of the input's ankles
+        (:attr:`ankles`) in the frame the output was made from."""
+        sk = self.skeleton
+        positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
+        positions[:, sk.pelvis] = root_positions
+        g_rot, g_pos = forward_kinematics(sk, rotations, positions)
+        hip, knee, ankle = g_pos[:, self._hip], g_pos[:, self._knee], g_pos[:, self._ankle]
+        speed = np.linalg.norm(input_ankles - self._last, axis=-1) * self.fps  # NaN on a first frame
+        self._last = input_ankles
+        contact = (input_ankles[..., 1] < self._height) & (speed < self.speed)
+
+        # A lock given up because the leg would stretch too far stays off until that contact ends
+        # (locking again at once would snap the ankle back to where the stylizer put it).
+        self._spent &= contact
+        start = contact & ~self._locked & ~self._spent
+        self._target[start] = ankle[start]
+        stretched = self._locked & (np.linalg.norm(ankle - self._target, axis=-1) > self.max_stretch)
+        self._spent |= stretched
+        locked = contact & ~self._spent
+        released = self._locked & ~locked
+        self._offset[released] = (self._target - ankle)[released]
+        self._locked = locked
+        self._weight = np.where(locked, 1.0, np.maximum(self._weight - self._fade, 0.0))
+        if not self._weight.any():
+            return rotations.copy()
+
+        # Locked: the ankle stays at its target. Released: the correction it had then fades out,
+        # so the leg eases back onto the stylizer's swing rather than being held behind.
+        goal = np.where(locked[..., None], self._target, ankle + self._weight[..., None] * self._offset)
+        g_upper, g_lower = self._two_bone(g_rot[:, self._hip], g_rot[:, self._knee], hip, knee, ankle, goal)
+        g_foot = g_rot[:, self._ankle]  # the foot keeps its own world orientation (heel-toe roll)
+        parent = g_rot[:, [sk.parents[j] for j in self._hip]]
+        out = rotations.copy()
+        out[:, self._hip] = rot.multiply(rot.conjugate(parent), g_upper)
+        out[:, self._knee] = rot.multiply(rot.conjugate(g_upper), g_lower)
+        out[:, self._ankle] = rot.multiply(rot.conjugate(g_lower), g_foot)
+        return out
+
+    def _two_bone(self, g_upper, g_lower, hip, knee, ankle, goal):
+        """World rotations of upper and lower leg that put the ankle at ``goal`` (as near as the
+        leg reaches): bend the knee to the goal's distance, then swing the hip onto it."""
+        u, v = hip - knee, ankle - knee
+        a, b = np.linalg.norm(u, axis=-1), np.linalg.norm(v, axis=-1)
+        axis = rot.cross(u, v)
+        size = np.linalg.norm(axis, axis=-1, keepdims=True)
+        good = size[..., 0] > 1e-6 * a * b
+        self._axis[good] = (axis / np.maximum(size, _EPS))[good]
+        axis = self._axis  # zero until the leg was first seen bent: then the knee is left alone
+        known = np.any(axis != 0.0, axis=-1)
+        c = np.clip(np.linalg.norm(goal - hip, axis=-1), np.abs(a - b) + 1e-4, a + b - 1e-4)
+        now = np.arccos(np.clip(np.sum(u * v, axis=-1) / np.maximum(a * b, _EPS), -1.0, 1.0))
+        wanted = np.arccos(np.clip((a * a + b * b - c * c) / np.maximum(2 * a * b, _EPS), -1.0, 1.0))
+        bend = rot.from_axis_angle(axis, np.where(known, wanted - now, 0.0))
+        ankle = knee + rot.rotate(bend, v)
+        swing = rot.between(ankle - hip, goal - hip)
+        return rot.multiply(swing, g_upper), rot.multiply(swing, rot.multiply(bend, g_lower))

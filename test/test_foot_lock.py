@@ -1,0 +1,71 @@
+"""Foot locking on real walks: planted feet stop sliding, nothing else moves, bones keep their lengths."""
+
+import numpy as np
+import pytest
+
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.foot_lock import FootLock
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.evaluation import metrics
+from motion_style_ros.io.datasets import ClipInfo, load_clip
+
+WALK = "dataset-2_walk_normal_001"
+
+
+@pytest.fixture(scope="module")
+def walk(datasets):
+    path = datasets / f"bandai-namco/Bandai-Namco-Research-Motiondataset-2/data/{WALK}.bvh"
+    return load_clip(ClipInfo("bandai-2", path, WALK, "walk", "normal", "", ""))
+
+
+def locked(motion: Motion, lock: FootLock, source: Motion | None = None) -> Motion:
+    """``motion`` frame by frame through ``lock``, with contacts from ``source`` (default: itself)."""
+    roots = motion.positions[:, motion.skeleton.pelvis]
+    ankles = (source or motion).global_positions()[:, lock.ankles]
+    out = np.concatenate([lock(motion.rotations[t:t + 1], roots[t:t + 1], ankles[t:t + 1])
+                          for t in range(motion.n_frames)])
+    return Motion.from_rotations(motion.skeleton, out, roots, motion.fps)
+
+
+def sliding(motion: Motion) -> Motion:
+    """The walk with its root pushed 30 % further along its path: every planted foot slides."""
+    roots = motion.positions[:, motion.skeleton.pelvis].copy()
+    step = np.diff(roots[:, [0, 2]], axis=0, prepend=roots[:1, [0, 2]])
+    roots[:, [0, 2]] += 0.3 * np.cumsum(step, axis=0)
+    return Motion.from_rotations(motion.skeleton, motion.rotations, roots, motion.fps)
+
+
+def test_locking_cuts_foot_skating_and_leaves_the_rest_alone(walk):
+    slid = sliding(walk)
+    fixed = locked(slid, FootLock(1, walk.fps), source=walk)
+    before, after = metrics.foot_skating(slid), metrics.foot_skating(fixed)
+    assert after < 0.8 * before, (before, after)
+    assert np.isfinite(fixed.rotations).all()
+    legs = [walk.skeleton.index(n) for n in ("UpperLeg_L", "LowerLeg_L", "Foot_L",
+                                             "UpperLeg_R", "LowerLeg_R", "Foot_R")]
+    others = [j for j in range(walk.skeleton.n_joints) if j not in legs]
+    assert np.array_equal(fixed.rotations[:, others], slid.rotations[:, others])
+    assert metrics.bone_length_error(fixed, walk.skeleton) < 1e-9
+    # No pops: a locked leg turns about as fast as the input's legs do at most.
+    def largest_step(m):
+        return np.degrees(rot.angle_between(m.rotations[1:, legs], m.rotations[:-1, legs])).max()
+    assert largest_step(fixed) < 1.6 * largest_step(walk)
+
+
+def test_a_clean_walk_is_barely_changed(walk):
+    fixed = locked(walk, FootLock(1, walk.fps))
+    change = np.degrees(rot.angle_between(fixed.rotations, walk.rotations))
+    assert np.median(change) < 0.5 and np.percentile(change, 99) < 12.0
+    assert metrics.foot_skating(fixed) <= metrics.foot_skating(walk) * 1.05
+
+
+def test_reset_forgets_the_lock(walk):
+    lock = FootLock(1, walk.fps)
+    roots, ankles = walk.positions[:, 1], walk.global_positions()[:, lock.ankles]
+    for t in range(10):
+        lock(walk.rotations[t:t + 1], roots[t:t + 1], ankles[t:t + 1])
+    lock.reset()
+    # After a reset, a frame teleported a metre away is taken as it is (no leg pulled back).
+    far = roots[10:11] + np.array([1.0, 0.0, 0.0])
+    assert np.allclose(lock(walk.rotations[10:11], far, ankles[10:11] + [1.0, 0.0, 0.0]),
+                       walk.rotations[10:11])
