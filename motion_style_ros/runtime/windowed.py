@@ -21,6 +21,9 @@ differs:
   mixed by the style weights (style and mix), then moved from the window's own style code (the
   style encoder on the input window) towards it by alpha: alpha 0 reproduces the input. Seed and
   reference changes blend over ``blend_seconds`` like style and alpha.
+- **Foot locking.** With ``foot_lock`` (the default), feet the input plants stay planted in the
+  output (:mod:`motion_style_ros.core.foot_lock`), judged on the input frame each output frame
+  was made from.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.core.features import FEATURE_VERSION, StreamDecoder, StreamEncoder, encode
+from motion_style_ros.core.foot_lock import LEGS, FootLock
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
@@ -88,6 +92,7 @@ class WindowedSession(RecurrentSession):
         hop: int = 4,
         lookahead: int = 16,
         latent_seed: int = 0,
+        foot_lock: bool = True,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -121,10 +126,12 @@ class WindowedSession(RecurrentSession):
         self._controls = Controls(self.styles, self.performers, self.styles[0], blend_seconds)
         self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
+        self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
+        self._ankle_joints = [self.skeleton.index(leg[-1]) for leg in LEGS]
         self._fresh = np.ones(self.performers, dtype=bool)
-        # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
+        # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
         self._codes_to = np.repeat(self._seed_codes(latent_seed)[None], self.performers, axis=0)
         self._codes_from = self._codes_to.copy()
         self._code_progress = np.ones(self.performers)
@@ -210,6 +217,8 @@ class WindowedSession(RecurrentSession):
         self._start = np.zeros(self.performers, dtype=int)  # each performer's first frame
         self._next = np.zeros(self.performers, dtype=int)  # the next frame each one emits
         self._held = np.zeros((self.performers, self._n_out))
+        # the input's ankles of the frames in the overlap-add slots (for foot locking)
+        self._ankles = np.zeros((self.performers, self.lookahead + 1, 2, 3))
 
     def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
         """One model frame for all performers at stream time ``t``; emits frame ``t - lookahead``."""
@@ -219,12 +228,17 @@ class WindowedSession(RecurrentSession):
         self._history[:, :-1] = self._history[:, 1:]
         self._history[:, -1] = features
         self._ola.shift()
+        self._ankles = np.roll(self._ankles, -1, axis=1)
+        self._ankles[:, -1] = self._encoder.positions[:, self._ankle_joints]
         if fresh.any():
             self._decoder.start(*self._encoder.facing(), which=fresh)
             self._controls.snap(fresh)
             self._snap_codes(fresh)
             self._history[fresh] = features[fresh][:, None]
             self._ola.clear(fresh)
+            self._ankles[fresh] = self._ankles[fresh, -1:]
+            if self._foot_lock is not None:
+                self._foot_lock.reset(fresh)
             self._start[fresh] = self._next[fresh] = n
         style, alpha = self._controls.advance(1.0 / self.fps)
         self._advance_codes(1.0 / self.fps)
@@ -244,6 +258,9 @@ class WindowedSession(RecurrentSession):
         self._fresh[:] = False
         self._n += 1
         frame = self._decoder(frames)
+        if self._foot_lock is not None:
+            ankles = self._ankles[np.arange(self.performers), slot]
+            frame = self._foot_lock(*frame, ankles), frame[1]
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)
         self._outputs = [*self._outputs[-1:], (t - lookahead / self.fps, *frame)]

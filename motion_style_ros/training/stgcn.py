@@ -80,7 +80,7 @@ class Config:
     r1_every: int = 4
     w_sty: float = 1.0
     w_ds: float = 1.0  # decays linearly to 0 over ds_iterations
-    ds_iterations: int = 4000
+    ds_iterations: int = 10000
     w_cyc: float = 1.0
     w_id: float = 1.0
     w_cls: float = 1.0
