@@ -173,6 +173,21 @@ def test_the_offline_stylizer_streams_clips_through_the_session(identity_model, 
     assert moved[:, upper].max() < 1e-5
 
 
+def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, random_model, walk):
+    from motion_style_ros.evaluation import windowed
+
+    rows = windowed.lookahead_costs([(walk, "elderly")], identity_model, lookaheads=(0, 8), hop=4)
+    assert [r["lookahead"] for r in rows] == [0, 8]
+    for row in rows:
+        assert row["jump_ratio_max"] == pytest.approx(1.0, abs=1e-3)
+        assert row["distance_from_most_lookahead_m"] < 1e-6
+        assert row["style_accuracy"] == 0.0  # the input is masculine, not elderly
+    spread = windowed.diversity([walk[:48]], ["elderly", "active"], random_model, seeds=(0, 1))
+    assert spread["between_seeds_m"] > 0 and spread["between_styles_m"] > 0
+    report = windowed.bench_report(walk[:40], random_model, hops=(1, 8), lookahead=8)
+    assert "one window, 8 performer(s)" in report and "hop 8:" in report
+
+
 # --- the trained model ---------------------------------------------------------------------------
 
 TRAINED = models_dir() / "stgcn.onnx"

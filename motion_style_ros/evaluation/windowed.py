@@ -1,0 +1,142 @@
+"""How the windowed ST-GCN stylizer does on this machine and on real clips: what one window costs
+on ONNX Runtime and per frame at each hop, what each lookahead costs in quality (seams, style,
+foot skating, distance from the most-context output), and how diverse its latent seeds are.
+``bench_report`` is what ``motion-style bench stgcn`` prints."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.evaluation.judges import Judge
+from motion_style_ros.evaluation.metrics import foot_skating
+from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
+from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession
+
+LOOKAHEADS = (0, 8, 16, 32)
+
+
+def window_times(model: str | Path = DEFAULT_MODEL, performers: int = 1, repeats: int = 200,
+                 threads: int = 1) -> np.ndarray:
+    """Wall time (ms) of each of ``repeats`` generator runs on one window of ``performers``."""
+    path = model_path(str(model))
+    card = read_card(path)
+    generator = OnnxModel(path, threads)
+    rng = np.random.default_rng(0)
+    features = rng.normal(size=(performers, int(card["window"]), card["feature_layout"]["contact"][1]))
+    code = rng.uniform(-1, 1, size=(performers, int(card["style_dim"])))
+    inputs = {"features": features.astype(np.float32), "code": code.astype(np.float32)}
+    generator.run(**inputs)  # warm-up
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter_ns()
+        generator.run(**inputs)
+        times.append((time.perf_counter_ns() - start) / 1e6)
+    return np.array(times)
+
+
+def step_times(session: WindowedSession, motion: Motion, style: str) -> np.ndarray:
+    """Wall time (ms) of each ``step()`` call streaming ``motion`` (at its own rate) through
+    ``session``, everything included (features, windows, overlap-add, decoding, foot locking)."""
+    session.set_style(style)
+    session.restart()
+    roots = motion.root_positions
+    times = []
+    for t in range(motion.n_frames):
+        start = time.perf_counter_ns()
+        session.step(motion.rotations[t], roots[t], t / motion.fps)
+        times.append((time.perf_counter_ns() - start) / 1e6)
+    return np.array(times)
+
+
+def largest_jump(motion: Motion) -> float:
+    """Largest distance (m) any joint moves between two consecutive frames."""
+    return float(np.linalg.norm(np.diff(motion.global_positions(), axis=0), axis=-1).max())
+
+
+def _local(motion: Motion) -> np.ndarray:
+    """Joint positions relative to the pelvis (the root trajectory left out)."""
+    return motion.global_positions() - motion.root_positions[:, None]
+
+
+def lookahead_costs(pairs: list[tuple[Motion, str]], model: str | Path = DEFAULT_MODEL,
+                    lookaheads: tuple[int, ...] = LOOKAHEADS, hop: int = 4,
+                    judge: Judge | None = None) -> list[dict]:
+    """One row per lookahead over ``(source clip, target style)`` pairs (30 fps canonical clips):
+    the largest joint jump between consecutive output frames over the input's own (seams show as
+    a ratio above 1), the style judge's accuracy, foot skating (m/s) of output and input, and the
+    mean pelvis-relative joint distance (m) from the output with the most lookahead (the window
+    minus one frame: as much context as a window gives)."""
+    judge = judge or Judge("style")
+    window = int(read_card(model_path(str(model)))["window"])
+
+    def stylize(lookahead: int) -> list[Motion]:
+        session = WindowedSession(model, lookahead=lookahead, hop=min(hop, lookahead + 1))
+        return [session.run(source, style) for source, style in pairs]
+
+    most = stylize(window - 1)
+    rows = []
+    for lookahead in lookaheads:
+        outs = stylize(lookahead)
+        labels = judge.judge(outs).labels
+        rows.append({
+            "lookahead": lookahead,
+            "latency_ms": round(1000 * lookahead / 30.0, 1),
+            "jump_ratio_max": round(max(largest_jump(o) / largest_jump(s) for o, (s, _) in zip(outs, pairs)), 3),
+            "style_accuracy": round(float(np.mean([lab == st for lab, (_, st) in zip(labels, pairs)])), 3),
+            "foot_skating": round(float(np.nanmean([foot_skating(o) for o in outs])), 4),
+            "input_foot_skating": round(float(np.nanmean([foot_skating(s) for s, _ in pairs])), 4),
+            "distance_from_most_lookahead_m": round(float(np.mean(
+                [np.linalg.norm(_local(o) - _local(m), axis=-1).mean() for o, m in zip(outs, most)])), 4),
+        })
+    return rows
+
+
+def diversity(sources: list[Motion], styles: list[str], model: str | Path = DEFAULT_MODEL,
+              seeds: tuple[int, ...] = (0, 1, 2, 3)) -> dict:
+    """Mean pelvis-relative joint distance (m) between outputs of one source and style under two
+    seeds, against the distance between outputs of one source and seed under two styles."""
+    outs = {}
+    for seed in seeds:
+        session = WindowedSession(model, latent_seed=seed)
+        for i, source in enumerate(sources):
+            for style in styles:
+                outs[i, style, seed] = _local(session.run(source, style))
+
+    def mean_distance(pairs) -> float:
+        return float(np.mean([np.linalg.norm(outs[a] - outs[b], axis=-1).mean() for a, b in pairs]))
+
+    n = range(len(sources))
+    between_seeds = [((i, s, a), (i, s, b)) for i in n for s in styles for a in seeds for b in seeds if a < b]
+    between_styles = [((i, a, k), (i, b, k)) for i in n for k in seeds for a in styles for b in styles if a < b]
+    return {"between_seeds_m": round(mean_distance(between_seeds), 4),
+            "between_styles_m": round(mean_distance(between_styles), 4),
+            "seeds": list(seeds), "styles": list(styles), "sources": len(sources)}
+
+
+def bench_report(motion: Motion, model: str | Path = DEFAULT_MODEL, hops: tuple[int, ...] = (1, 4, 8),
+                 lookahead: int = 8, threads: int = 1) -> str:
+    """The lines ``motion-style bench stgcn`` prints: one window on ONNX Runtime (1 and 8
+    performers) and the per-frame amortised cost at each hop, then the wall time of a session's
+    ``step()`` streaming ``motion`` (a real clip, at its rate) at each hop with ``lookahead``."""
+    path = model_path(str(model))
+    card = read_card(path)
+    lines = [f"model: {path} ({card['window']}-frame windows, {card['fps']:g} fps; trained on: "
+             f"{card.get('training', {}).get('data', 'unknown data')}); ONNX Runtime on {threads} thread(s)"]
+    for performers in (1, 8):
+        ms = window_times(path, performers, threads=threads)
+        p50, p99 = np.percentile(ms, [50, 99])
+        amortised = ", ".join(f"hop {h}: {p50 / h:.3f} ms" for h in hops)
+        lines.append(f"one window, {performers} performer(s): p50 {p50:.2f} ms, p99 {p99:.2f} ms; "
+                     f"per frame amortised {amortised}")
+    lines.append(f"step() per input frame, {motion.n_frames} frames of a real clip at {motion.fps:g} Hz, "
+                 f"lookahead {lookahead} ({1000 * lookahead / card['fps']:.0f} ms):")
+    for h in hops:
+        session = WindowedSession(path, hop=h, lookahead=lookahead, threads=threads, input_fps=motion.fps)
+        ms = step_times(session, motion, session.styles[0])
+        p50, p99, worst = np.percentile(ms, [50, 99, 100])
+        lines.append(f"  hop {h}: p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {worst:.2f} ms, mean {ms.mean():.2f} ms")
+    return "\n".join(lines)
