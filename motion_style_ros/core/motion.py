@@ -82,17 +82,30 @@ class Motion:
         return cls(skeleton, rotations, positions, fps)
 
 
+# Up to this many poses, forward kinematics runs on rotation matrices: fewer numpy calls (what a
+# streamed frame costs); above it, on quaternions (fewer operations per pose, faster on clips).
+_MATRIX_FK_POSES = 16
+
+
 def forward_kinematics(
     skeleton: Skeleton, rotations: np.ndarray, positions: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones."""
-    g_rot = np.empty(rotations.shape, dtype=np.float64)
     g_pos = np.empty(positions.shape, dtype=np.float64)
-    g_rot[..., 0, :] = rotations[..., 0, :]
     g_pos[..., 0, :] = positions[..., 0, :]
-    # One level of the tree at a time (all its joints in one call): few numpy calls per frame,
-    # which is what a streamed frame costs.
-    for joints, parents in _levels(skeleton.parents):
+    levels = _levels(skeleton.parents)  # one tree level at a time, all its joints in one call
+    if rotations[..., 0, 0].size <= _MATRIX_FK_POSES:
+        m = rot.to_matrix(rotations)
+        g = np.empty_like(m)
+        g[..., 0, :, :] = m[..., 0, :, :]
+        for joints, parents in levels:
+            g_pos[..., joints, :] = g_pos[..., parents, :] + (
+                g[..., parents, :, :] @ positions[..., joints, :, None])[..., 0]
+            g[..., joints, :, :] = g[..., parents, :, :] @ m[..., joints, :, :]
+        return rot.from_matrix(g), g_pos
+    g_rot = np.empty(rotations.shape, dtype=np.float64)
+    g_rot[..., 0, :] = rotations[..., 0, :]
+    for joints, parents in levels:
         g_rot[..., joints, :] = rot.multiply(g_rot[..., parents, :], rotations[..., joints, :])
         g_pos[..., joints, :] = g_pos[..., parents, :] + rot.rotate(
             g_rot[..., parents, :], positions[..., joints, :]

@@ -64,26 +64,64 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
+def _matrix_table() -> np.ndarray:
+    """``(16, 9)``: the rotation matrix of a unit quaternion as a quadratic form, ``(q q^T) @ T``."""
+    terms = {  # matrix entry (row, col): [(i, j, coefficient of q_i q_j)]
+        (0, 0): [(0, 0, 1), (1, 1, 1), (2, 2, -1), (3, 3, -1)],
+        (0, 1): [(1, 2, 2), (0, 3, -2)], (0, 2): [(1, 3, 2), (0, 2, 2)],
+        (1, 0): [(1, 2, 2), (0, 3, 2)], (1, 1): [(0, 0, 1), (1, 1, -1), (2, 2, 1), (3, 3, -1)],
+        (1, 2): [(2, 3, 2), (0, 1, -2)], (2, 0): [(1, 3, 2), (0, 2, -2)],
+        (2, 1): [(2, 3, 2), (0, 1, 2)], (2, 2): [(0, 0, 1), (1, 1, -1), (2, 2, -1), (3, 3, 1)],
+    }
+    table = np.zeros((4, 4, 3, 3))
+    for (row, col), products in terms.items():
+        for i, j, c in products:
+            table[i, j, row, col] = c
+    return table.reshape(16, 9)
+
+
+_MATRIX = _matrix_table()
+
+
 def to_matrix(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = np.moveaxis(normalize(q), -1, 0)
-    m = np.stack(
-        [
-            1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-        ],
-        axis=-1,
-    )
-    return m.reshape(q.shape[:-1] + (3, 3))
+    """Rotation matrices ``(..., 3, 3)``; one matrix product, so one frame costs a few numpy calls."""
+    q = normalize(q)
+    outer = (q[..., :, None] * q[..., None, :]).reshape(q.shape[:-1] + (16,))
+    return (outer @ _MATRIX).reshape(q.shape[:-1] + (3, 3))
+
+
+def _outer_table() -> tuple[np.ndarray, np.ndarray]:
+    """``(9, 16)`` and ``(16,)``: ``4 q q^T`` of a rotation matrix's quaternion, linear in the matrix."""
+    entries = {  # (i, j) of 4 q q^T: [(matrix row, col, coefficient)], plus a constant
+        (0, 0): [(0, 0, 1), (1, 1, 1), (2, 2, 1)], (1, 1): [(0, 0, 1), (1, 1, -1), (2, 2, -1)],
+        (2, 2): [(0, 0, -1), (1, 1, 1), (2, 2, -1)], (3, 3): [(0, 0, -1), (1, 1, -1), (2, 2, 1)],
+        (0, 1): [(2, 1, 1), (1, 2, -1)], (0, 2): [(0, 2, 1), (2, 0, -1)],
+        (0, 3): [(1, 0, 1), (0, 1, -1)], (1, 2): [(0, 1, 1), (1, 0, 1)],
+        (1, 3): [(0, 2, 1), (2, 0, 1)], (2, 3): [(1, 2, 1), (2, 1, 1)],
+    }
+    table, const = np.zeros((3, 3, 4, 4)), np.zeros((4, 4))
+    for (i, j), terms in entries.items():
+        for row, col, c in terms:
+            table[row, col, i, j] = table[row, col, j, i] = c
+    const[np.diag_indices(4)] = 1.0
+    return table.reshape(9, 16), const.reshape(16)
+
+
+_OUTER, _OUTER_CONST = _outer_table()
 
 
 def from_matrix(m: np.ndarray) -> np.ndarray:
-    """Quaternions (w >= 0) from rotation matrices ``(..., 3, 3)``."""
+    """Quaternions (w >= 0) from rotation matrices ``(..., 3, 3)``.
+
+    ``4 q q^T`` is linear in the matrix; its column with the largest diagonal entry is the
+    best-conditioned multiple of ``q`` (Shepperd's method, in a few numpy calls).
+    """
     lead = m.shape[:-2]
-    xyzw = Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat()
-    q = xyzw[:, [3, 0, 1, 2]]
-    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
-    return q.reshape(lead + (4,))
+    outer = (m.reshape(lead + (9,)) @ _OUTER + _OUTER_CONST).reshape(lead + (4, 4))
+    best = np.argmax(np.diagonal(outer, axis1=-2, axis2=-1), axis=-1)
+    q = np.take_along_axis(outer, best[..., None, None], axis=-1)[..., 0]
+    q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
+    return normalize(q)
 
 
 def from_euler(angles: np.ndarray, order: str, degrees: bool = False) -> np.ndarray:
