@@ -125,6 +125,8 @@ class Stylizer(PlayerNode):
         publish_markers = self.param("publish_markers", False, "publish the stylized skeleton as "
                                      "a visualization_msgs/MarkerArray on stylized/markers")
         threads = self.param("threads", 1, "ONNX Runtime threads per performer", 1, 16)
+        foot_lock = self.param("foot_lock", True, "keep the feet the input plants planted in the "
+                               "output (causal leg IK)")
         if backend not in BACKENDS:
             raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
         if reliability not in RELIABILITY:
@@ -135,7 +137,8 @@ class Stylizer(PlayerNode):
                                    "prefixes, e.g. ['alice', 'bob'] (or [''] for one performer)")
         self.backend = backend
         self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
-        sessions = [RecurrentSession(model, 1, input_fps or None, blend, threads) for _ in prefixes]
+        sessions = [RecurrentSession(model, 1, input_fps or None, blend, threads,
+                                     foot_lock=foot_lock) for _ in prefixes]
         session = sessions[0]
         self.styles = session.styles
         self.period_ns = round(1e9 / session.input_fps)
