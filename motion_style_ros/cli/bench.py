@@ -17,9 +17,6 @@ def add_parser(subparsers):
                     "(p50/p99, microseconds) for several numbers of performers, and the largest "
                     "number of performers whose p99 step time fits one input frame (real time).",
     )
-    recurrent.add_argument("--model", default=DEFAULT_MODEL,
-                           help="ONNX model with its card beside it "
-                                f"(default: the shipped {DEFAULT_MODEL})")
     recurrent.add_argument("--performers", default="1,4,16", metavar="N,N,...",
                            help="performer counts to time (default: 1,4,16)")
     recurrent.add_argument("--seconds", type=float, default=5.0,
@@ -27,6 +24,12 @@ def add_parser(subparsers):
     recurrent.add_argument("--input-fps", type=float, default=120.0,
                            help="rate of the input stream in Hz (default: 120)")
     recurrent.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
+    recurrent.add_argument("--checkpoint", default=None,
+                           help="training checkpoint whose torch generator is timed against the ONNX "
+                                "graph (default: the seed-0 one in ~/.cache/motion_style_ros/"
+                                "checkpoints, if there; needs torch)")
+    recurrent.add_argument("--record", action="store_true",
+                           help="also write the figures into the model card's metrics")
     recurrent.set_defaults(func=run_recurrent)
     nodes = targets.add_parser(
         "nodes", help="the stylizer node over DDS, end to end",
@@ -37,8 +40,6 @@ def add_parser(subparsers):
                     "process's CPU use (utime + stime from /proc, in %% of one core) for each input "
                     "rate with one performer and at the highest rate with several performers.",
     )
-    nodes.add_argument("--model", default=DEFAULT_MODEL,
-                       help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
     nodes.add_argument("--rates", default="30,60,120", metavar="HZ,HZ,...",
                        help="input rates with one performer (default: 30,60,120)")
     nodes.add_argument("--performers", type=int, default=4,
@@ -46,6 +47,9 @@ def add_parser(subparsers):
     nodes.add_argument("--seconds", type=float, default=10.0,
                        help="measured stream time per row in seconds (default: 10)")
     nodes.set_defaults(func=run_nodes)
+    for target in (recurrent, nodes):
+        target.add_argument("--model", default=DEFAULT_MODEL,
+                            help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
 
 
 def run_recurrent(args) -> int:
@@ -81,7 +85,76 @@ def run_recurrent(args) -> int:
     limit = f"at least {best}" if best == MAX_PERFORMERS else str(best)
     print(f"largest number of performers stylized in real time at {args.input_fps:g} Hz "
           f"(p99 step time under {budget_us:.0f} us): {limit}")
+    calls = _model_calls(path, session.card, args.checkpoint, args.threads)
+    for name, (p50, p99) in calls.items():
+        print(f"model call alone, 1 performer, {name}: p50 {p50:.0f} us, p99 {p99:.0f} us")
+    if "torch" in calls:
+        print(f"torch / ONNX Runtime time per model call (p50): "
+              f"{calls['torch'][0] / calls['onnxruntime'][0]:.2f}")
+    if args.record:
+        import os
+        import shlex
+        import sys
+
+        from motion_style_ros.runtime.onnx_model import record_metrics
+
+        rows = {str(n): dict(zip(("p50_us", "p99_us"), np.percentile(m, [50, 99]).round(1).tolist()))
+                for n, (_, m) in results.items()}
+        figures = {"command": "motion-style " + shlex.join(sys.argv[1:]), "cpus": os.cpu_count(),
+                   "load_average": os.getloadavg()[0], "input_fps": args.input_fps,
+                   "step_per_performers": rows, "real_time_performers": best,
+                   "model_call_us": {k: {"p50": round(a, 1), "p99": round(b, 1)}
+                                     for k, (a, b) in calls.items()}}
+        print(f"recorded in {record_metrics(path, 'bench', figures)}")
     return 0
+
+
+def _model_calls(path, card: dict, checkpoint, threads: int, calls: int = 2000) -> dict:
+    """p50/p99 (us) of one streaming model call for one performer on ONNX Runtime, and on torch
+    when a training checkpoint and torch are at hand."""
+    import time
+    from pathlib import Path
+
+    import numpy as np
+
+    from motion_style_ros.runtime.onnx_model import OnnxModel
+
+    rng = np.random.default_rng(0)
+    inputs = {"features": rng.normal(size=(1, card["feature_layout"]["contact"][1])).astype(np.float32),
+              "style": np.eye(len(card["styles"]), dtype=np.float32)[:1],
+              "alpha": np.ones((1, 1), np.float32),
+              "state": np.zeros((1, card["state_size"]), np.float32),
+              "reset": np.zeros((1, 1), np.float32)}
+
+    def timed(call) -> tuple[float, float]:
+        micros = []
+        for _ in range(calls):
+            start = time.perf_counter_ns()
+            call()
+            micros.append((time.perf_counter_ns() - start) / 1000)
+        return tuple(np.percentile(micros, [50, 99]).tolist())
+
+    onnx = OnnxModel(path, threads)
+    out = {"onnxruntime": timed(lambda: onnx.run(**inputs))}
+    default = Path.home() / ".cache/motion_style_ros/checkpoints/recurrent_0/checkpoint.pt"
+    checkpoint = Path(checkpoint) if checkpoint else default
+    try:
+        import torch
+
+        from motion_style_ros.models.style_erd import StepGraph
+        from motion_style_ros.training.recurrent import load_generator
+    except ModuleNotFoundError:
+        print("torch not installed: the torch model is not timed")
+        return out
+    if not checkpoint.is_file():
+        print(f"{checkpoint}: no training checkpoint, the torch model is not timed")
+        return out
+    torch.set_num_threads(threads)
+    step = StepGraph(load_generator(checkpoint))
+    tensors = {k: torch.from_numpy(v) for k, v in inputs.items()}
+    with torch.inference_mode():
+        out["torch"] = timed(lambda: step(**tensors))
+    return out
 
 
 def _time_steps(path, performers: int, seconds: float, input_fps: float, threads: int):
