@@ -272,13 +272,15 @@ def _positive(value: float, what: str) -> float:
     return float(value)
 
 
-def _check_card(card: dict, path: Path) -> None:
-    """The card describes a recurrent stylizer on the features this package computes."""
-    missing = [k for k in ("kind", "styles", "fps", "state_size", "feature_version") if k not in card]
+def _check_card(card: dict, path: Path, kind: str = "recurrent", keys: tuple[str, ...] = ("state_size",)
+                ) -> None:
+    """The card describes a ``kind`` stylizer (with ``keys`` too) on the features this package
+    computes."""
+    missing = [k for k in ("kind", "styles", "fps", *keys, "feature_version") if k not in card]
     if missing:
         raise MotionStyleError(f"{path.with_suffix('.json')}: model card lacks {', '.join(missing)}")
-    if card["kind"] != "recurrent":
-        raise MotionStyleError(f"{path}: a {card['kind']!r} model, not a recurrent stylizer")
+    if card["kind"] != kind:
+        raise MotionStyleError(f"{path}: a {card['kind']!r} model, not a {kind} stylizer")
     if card.get("skeleton", "canonical") != "canonical":
         raise MotionStyleError(
             f"{path}: made for skeleton {card['skeleton']!r}; the session streams the canonical one"

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_style_ros.core.features import FEATURE_VERSION, StreamDecoder, StreamEncoder, encode
+from motion_style_ros.core.features import StreamDecoder, StreamEncoder, encode
 from motion_style_ros.core.foot_lock import LEGS, FootLock
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
@@ -41,7 +41,7 @@ from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.controls import Controls, smoothstep, unit_interval
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
-from motion_style_ros.runtime.session import RecurrentSession, _positive
+from motion_style_ros.runtime.session import RecurrentSession, _check_card, _positive
 
 DEFAULT_MODEL = "stgcn.onnx"
 ROOT_MOTION = [0, 1, 3]  # the root block's velocity and yaw-rate columns
@@ -96,7 +96,7 @@ class WindowedSession(RecurrentSession):
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
-        _check_card(card, path)
+        _check_card(card, path, "windowed", ("window", "latent_dim", "style_dim", "files"))
         if not (isinstance(performers, (int, np.integer)) and performers >= 1):
             raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
         self.window = int(card["window"]) if window is None else window
@@ -300,21 +300,3 @@ class WindowedSession(RecurrentSession):
         own = np.einsum("ps,psd->pd", _softmax(out["logits"]), out["codes"])
         return (own + alpha * (target - own)).astype(np.float32)
 
-
-def _check_card(card: dict, path: Path) -> None:
-    """The card describes a windowed stylizer on the features this package computes."""
-    missing = [k for k in ("kind", "styles", "fps", "window", "latent_dim", "files", "feature_version")
-               if k not in card]
-    if missing:
-        raise MotionStyleError(f"{path.with_suffix('.json')}: model card lacks {', '.join(missing)}")
-    if card["kind"] != "windowed":
-        raise MotionStyleError(f"{path}: a {card['kind']!r} model, not a windowed stylizer")
-    if card.get("skeleton", "canonical") != "canonical":
-        raise MotionStyleError(
-            f"{path}: made for skeleton {card['skeleton']!r}; the session streams the canonical one"
-        )
-    if card["feature_version"] != FEATURE_VERSION:
-        raise MotionStyleError(
-            f"{path}: made for feature version {card['feature_version']}; this package computes "
-            f"version {FEATURE_VERSION} (retrain or update the package)"
-        )

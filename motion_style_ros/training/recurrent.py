@@ -389,6 +389,16 @@ class Trainer:
             self.log.write_text("".join(line + "\n" for line in kept))
         return True
 
+    @classmethod
+    def started(cls, cfg, data: Data, checkpoints: Path, progress: bool, resume: bool) -> "Trainer":
+        """A trainer continuing from its checkpoint (``resume`` and there is one) or afresh."""
+        trainer = cls(cfg, data, checkpoints, progress)
+        if resume and trainer.resume():
+            print(f"resuming {trainer.checkpoint} at iteration {trainer.state['iteration']}")
+        elif not resume:
+            trainer.fresh_start()
+        return trainer
+
     def fresh_start(self) -> None:
         """Forget an earlier run's checkpoint and log (the content network stays: it is keyed by
         its own settings)."""
@@ -542,11 +552,7 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     torch.set_num_threads(threads)
     started = time.perf_counter()
     data = data or load_data(cfg.datasets, progress)
-    trainer = Trainer(cfg, data, checkpoints, progress)
-    if resume and trainer.resume():
-        print(f"resuming {trainer.checkpoint} at iteration {trainer.state['iteration']}")
-    elif not resume:
-        trainer.fresh_start()
+    trainer = Trainer.started(cfg, data, checkpoints, progress, resume)
     setup_s = time.perf_counter() - started
     trainer.run(minutes, iterations)
     onnx_path = out_dir / f"{NAME}.onnx"

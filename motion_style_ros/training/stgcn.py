@@ -405,11 +405,7 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     torch.set_num_threads(threads)
     started = time.perf_counter()
     data = data or load_data(cfg.datasets, progress)
-    trainer = Trainer(cfg, data, checkpoints, progress)
-    if resume and trainer.resume():
-        print(f"resuming {trainer.checkpoint} at iteration {trainer.state['iteration']}")
-    elif not resume:
-        trainer.fresh_start()
+    trainer = Trainer.started(cfg, data, checkpoints, progress, resume)
     setup_s = time.perf_counter() - started
     trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
     probe = max(data.splits["val"].features, key=len)
