@@ -32,6 +32,8 @@ def add_parser(subparsers):
     p.add_argument("--seed", type=int, default=0, help="seed of the take choice (default: 0)")
     p.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--record", action="store_true",
+                   help="also write the results into the model card's metrics (one --stylizer)")
     p.add_argument("--unseen", action="store_true",
                    help="instead: stylize the CMU and Xia neutral clips (other rigs and studios, "
                         "retargeted) into every style and check for NaN, joint flips, foot skating "
@@ -61,6 +63,11 @@ def run(args: argparse.Namespace) -> int:
     model = names[0] if names else None
     json_path, png_path = harness.write(report, Path(args.out), model=model)
     print(harness.format_table(report, model=model))
+    if args.record:
+        summary = {name: {**system["overall"], "fmd_per_style": {
+                       s: v["fmd"] for s, v in system["per_style"].items()}}
+                   for name, system in report["systems"].items()}
+        _record(args, "eval", {"settings": report["settings"], "systems": summary})
     for name, system in report["systems"].items():
         if system["skipped"]:
             print(f"{name}: {len(system['skipped'])} pairs skipped "
@@ -100,7 +107,26 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
     path.write_text(json.dumps({"settings": {"alpha": args.alpha, "styles": styles}, **reports},
                                indent=1) + "\n")
     print(f"wrote {path}")
+    if args.record:
+        _record(args, "unseen", {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})
     return 0
+
+
+def _record(args: argparse.Namespace, key: str, metrics: dict) -> None:
+    """Write ``metrics`` into the card of the one stylizer's model, with the command line."""
+    import shlex
+    import sys
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.offline import default_model
+    from motion_style_ros.runtime.onnx_model import model_path, record_metrics
+
+    if len(args.stylizer or []) != 1:
+        raise MotionStyleError("--record writes into one model's card: give one --stylizer")
+    command = "motion-style " + shlex.join(sys.argv[1:])
+    path = record_metrics(model_path(args.model or default_model(args.stylizer[0])), key,
+                          {"command": command, **metrics})
+    print(f"recorded in {path}")
 
 
 def _fmt(value) -> str:

@@ -68,3 +68,13 @@ class OnnxModel:
         if missing:
             raise MotionStyleError(f"{self.path.name}: missing inputs {', '.join(sorted(missing))}")
         return dict(zip(self.output_names, self.session.run(self.output_names, inputs)))
+
+
+def record_metrics(model: Path, key: str, metrics: dict) -> Path:
+    """Store measured ``metrics`` under ``metrics[key]`` of the model's card (with the command
+    that measured them inside), so the card's numbers are the last ones someone ran."""
+    card = read_card(model)
+    card.setdefault("metrics", {})[key] = metrics
+    path = Path(model).with_suffix(".json")
+    path.write_text(json.dumps(card, indent=2) + "\n")
+    return path

@@ -688,3 +688,14 @@ def export_random_model(path: Path, styles: list[str], seed: int = 0, neutral: s
         for p in model.initial:
             p.normal_(0.0, 0.3)
     write_model(model, Path(path), {"data": "none: random weights", "seed": seed})
+
+
+def load_generator(checkpoint: Path) -> StyleERD:
+    """The weight-averaged generator of a training checkpoint (what the ONNX export holds)."""
+    saved = torch.load(checkpoint, weights_only=False)
+    cfg = Config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved["config"].items()})
+    erd = cfg.erd(tuple(saved["styles"]))
+    model = StyleERD(erd, np.zeros(erd.n_features), np.ones(erd.n_features),
+                     np.zeros(erd.n_out), np.ones(erd.n_out))
+    model.load_state_dict(saved["ema"])
+    return model.eval()
