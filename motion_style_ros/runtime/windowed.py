@@ -76,7 +76,8 @@ class WindowedSession(RecurrentSession):
     ``model``: the generator's file name or path (card and companions beside it); ``window``:
     frames per window (default: the card's; a multiple of 4); ``hop``: frames between windows;
     ``lookahead``: output delay in model frames (0 to ``window - 1``); ``latent_seed``: every
-    performer's seed. Until :meth:`set_style`, every performer gets the first style at alpha 1.
+    performer's seed. Until :meth:`set_style`, every performer gets the card's ``neutral_style``
+    at alpha 1.
     """
 
     def __init__(
@@ -123,7 +124,8 @@ class WindowedSession(RecurrentSession):
             else 1.0 - np.exp(-1.0 / (self.fps * _positive(follow_seconds, "follow time")))
         )
         self.skeleton = canonical()
-        self._controls = Controls(self.styles, self.performers, self.styles[0], blend_seconds)
+        neutral = card.get("neutral_style", self.styles[0])
+        self._controls = Controls(self.styles, self.performers, neutral, blend_seconds)
         self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
         self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None

@@ -41,6 +41,7 @@ from motion_style_ros.training.judges import ATTRIBUTION
 from motion_style_ros.training.recurrent import (
     CHECKPOINTS,
     FPS,
+    NEUTRAL,
     OPSET,
     Clips,
     Data,
@@ -342,6 +343,7 @@ def card(gen: Generator, mapping: MappingNetwork, encoder: StyleEncoder, trainin
         "task": "motion style transfer over windows of frames, streamed by overlap-add; style codes "
                 "from a latent seed (mapping network) or a reference clip (style encoder)",
         "styles": list(cfg.styles),
+        "neutral_style": NEUTRAL if NEUTRAL in cfg.styles else cfg.styles[0],
         "fps": FPS,
         "skeleton": "canonical",
         "feature_version": FEATURE_VERSION,
