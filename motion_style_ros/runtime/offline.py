@@ -27,18 +27,27 @@ def _per_rate(session_class, model: str, alpha: float, threads: int) -> Stylizer
     return stylize
 
 
+def default_model(backend: str) -> str:
+    """The shipped model file of a backend."""
+    if backend == "stgcn":
+        from motion_style_ros.runtime.windowed import DEFAULT_MODEL
+
+        return DEFAULT_MODEL
+    return "style_erd.onnx"
+
+
 def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
     """The recurrent (Style-ERD) session."""
     from motion_style_ros.runtime.session import RecurrentSession
 
-    return _per_rate(RecurrentSession, model or "style_erd.onnx", alpha, threads)
+    return _per_rate(RecurrentSession, model or default_model("recurrent"), alpha, threads)
 
 
 def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
     """The windowed ST-GCN session: latent seed 0, the default window, hop and lookahead."""
-    from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession
+    from motion_style_ros.runtime.windowed import WindowedSession
 
-    return _per_rate(WindowedSession, model or DEFAULT_MODEL, alpha, threads)
+    return _per_rate(WindowedSession, model or default_model("stgcn"), alpha, threads)
 
 
 STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent, "stgcn": stgcn}
