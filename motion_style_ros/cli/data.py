@@ -32,11 +32,37 @@ def add_parser(subparsers):
     mode = split.add_mutually_exclusive_group(required=True)
     mode.add_argument("--check", action="store_true", help="exit 1 if the file differs from the rule")
     mode.add_argument("--write", action="store_true", help="rewrite the file from the rule")
+    stats = actions.add_parser(
+        "rotation-stats", help="check or regenerate the shipped rotation statistics",
+        description="Compare the shipped rotation_stats.json (per-joint 6D local-rotation mean and "
+                    "std of the Bandai dataset-2 train takes, which retargeted clips are conformed "
+                    "to) with the datasets (--check), or write it (--write).",
+    )
+    mode = stats.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--check", action="store_true", help="exit 1 if the file differs")
+    mode.add_argument("--write", action="store_true", help="rewrite the file from the datasets")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    return {"index": _index, "cache": _cache, "split": _split}[args.action](args)
+    return {"index": _index, "cache": _cache, "split": _split,
+            "rotation-stats": _rotation_stats}[args.action](args)
+
+
+def _rotation_stats(args) -> int:
+    from motion_style_ros.io import datasets as ds
+
+    expected, path = ds.rotation_stats_json(progress=False), ds.rotation_stats_file()
+    if args.write:
+        path.write_text(expected, encoding="utf-8")
+        print(f"wrote {path}")
+        return 0
+    if path.is_file() and path.read_text(encoding="utf-8") == expected:
+        print(f"{path} matches the datasets")
+        return 0
+    print(f"{path} differs from the statistics of the datasets; rewrite it with "
+          "'motion-style data rotation-stats --write' if the datasets really changed")
+    return 1
 
 
 def _index(args) -> int:

@@ -9,7 +9,8 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "stylize", help="restyle a BVH clip into one or more styles",
         description="Read a humanoid BVH clip (canonical Bandai/Unity names, CMU or Unity "
-                    "HumanBodyBones; retargeted to the canonical skeleton when needed), stream it "
+                    "HumanBodyBones; retargeted to the canonical skeleton when needed, its joint "
+                    "frames turned to the training data's conventions), stream it "
                     "frame by frame through a stylizer as the ROS node would, and write the "
                     "stylized clip as a canonical-skeleton BVH (centimetres). With several "
                     "--style, OUT gets the style name appended.",
@@ -30,10 +31,12 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from motion_style_ros.core.conform import conform_rolls
     from motion_style_ros.core.retarget import retarget
     from motion_style_ros.core.skeleton import canonical
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.io import bvh, render
+    from motion_style_ros.io.datasets import rotation_stats
     from motion_style_ros.runtime.offline import stylizer
 
     if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
@@ -41,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     stylize = stylizer(args.backend, args.model, args.alpha, args.threads)
     source = bvh.read(args.input).to_motion().check_finite(args.input)
     if source.skeleton.names != canonical().names:
-        source = retarget(source, canonical())
+        source = conform_rolls(retarget(source, canonical()), rotation_stats())
     output = Path(args.output)
     outputs = []
     for style in args.style:

@@ -64,6 +64,7 @@ BANDAI_DATASETS = (1, 2)
 XIA_CONTENTS = {"01": "walk", "13": "run", "16": "jump", "18": "punch"}
 SPLITS = ("train", "val", "test", "unseen")
 SPLIT_FILE = "resources/bandai_split.csv"  # inside the motion_style_ros package
+ROTATION_STATS_FILE = "resources/rotation_stats.json"  # 6D local-rotation statistics, train split
 
 CACHE_VERSION = 1  # bump when the cached arrays change meaning
 # Largest distance (m) of a bone's per-frame translation from the canonical rest offset; the
@@ -412,3 +413,28 @@ def load_bandai(infos: list[ClipInfo] | None = None, progress: bool = True) -> l
             elif not any(p.startswith(f"{info.path}: ") for p in c.problems):  # else warned already
                 _skip(info.path, "not found when the cache was built")
     return [(info, loaded[info]) for info in infos if info in loaded]
+
+
+# --- rotation statistics (what core.conform aligns retargeted joint frames to) -----------------
+
+
+def rotation_stats_file() -> Path:
+    return Path(str(resources.files("motion_style_ros") / ROTATION_STATS_FILE))
+
+
+def rotation_stats() -> dict[str, np.ndarray]:
+    """Per-joint 6D local-rotation mean and std of the Bandai dataset-2 training takes (shipped)."""
+    data = json.loads(rotation_stats_file().read_text(encoding="utf-8"))
+    return {"names": np.array(data["names"]), "mean": np.array(data["mean"]), "std": np.array(data["std"])}
+
+
+def rotation_stats_json(progress: bool = True) -> str:
+    """The rotation statistics computed from the datasets, as the shipped file holds them."""
+    from motion_style_ros.core.conform import statistics
+
+    train = [m for info, m in load_bandai(progress=progress)
+             if info.dataset == "bandai-2" and info.split == "train"]
+    stats = statistics(train)
+    return json.dumps({"data": f"Bandai Namco Research Motion Dataset 2, {len(train)} train takes",
+                       "names": stats["names"].tolist(), "mean": stats["mean"].round(6).tolist(),
+                       "std": stats["std"].round(6).tolist()}, indent=1) + "\n"

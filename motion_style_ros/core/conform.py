@@ -1,0 +1,79 @@
+"""Bring a retargeted motion's joint frames to the conventions of the training data, without
+moving a single joint.
+
+Retargeting matches bone *directions*; how a bone's frame is rolled about its own axis comes from
+the rigs' T-pose frames, and those disagree (a CMU forearm frame is rolled 36-40 degrees against
+Bandai's, so its elbow bends about the "wrong" local axis). Positions cannot see a roll, but a
+stylizer that reads local rotations sees it as motion it never met: a retargeted CMU walk was
+taken for "raise both hands" until its arm rotations were replaced.
+
+Every canonical bone runs along its joint's local X axis, so turning a joint's frame about X by a
+constant angle (and its child's local rotation by the inverse) leaves every position unchanged.
+For each arm chain (Shoulder -> UpperArm -> LowerArm -> Hand) the constant rolls that make the
+clip's local rotations most typical of the training data (Gaussian 6D-rotation statistics per
+joint) are found together by dynamic programming over a grid of angles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.errors import MotionStyleError
+
+CHAINS = tuple(tuple(f"{j}_{side}" for j in ("Shoulder", "UpperArm", "LowerArm", "Hand"))
+               for side in "LR")
+STD_FLOOR = 0.05  # 6D components that hardly vary in the training data still allow this much
+
+
+def statistics(motions: list[Motion]) -> dict[str, np.ndarray]:
+    """Per-joint mean and standard deviation of the 6D local rotations ``(J, 6)`` over clips."""
+    d6 = np.concatenate([rot.to_6d(m.rotations) for m in motions])
+    return {"names": np.array(motions[0].skeleton.names), "mean": d6.mean(axis=0),
+            "std": np.maximum(d6.std(axis=0), STD_FLOOR)}
+
+
+def _rolls(steps: int) -> np.ndarray:
+    angles = np.arange(steps) * (2 * np.pi / steps)
+    return rot.from_axis_angle(np.broadcast_to([1.0, 0.0, 0.0], (steps, 3)), angles)
+
+
+def conform_rolls(motion: Motion, stats: dict[str, np.ndarray], steps: int = 72,
+                  frames: int = 240) -> Motion:
+    """``motion`` with constant per-joint rolls about the bone axes (see the module docstring),
+    chosen on up to ``frames`` frames spread over the clip; global positions are unchanged to
+    rounding."""
+    sk = motion.skeleton
+    if list(stats["names"]) != list(sk.names):
+        raise MotionStyleError("rotation statistics are for another skeleton")
+    rolls = _rolls(steps)
+    inverse = rot.conjugate(rolls)
+    rotations = motion.rotations.copy()
+    sample = np.unique(np.linspace(0, motion.n_frames - 1, frames).round().astype(int))
+    for chain in CHAINS:
+        joints = [sk.index(n) for n in chain]
+        # cost[k][a, b]: joint k rolled by b, its parent by a (the chain's first parent, the chest,
+        # keeps its frame: a = 0 only).
+        costs = []
+        for k, j in enumerate(joints):
+            parents = inverse[:1] if k == 0 else inverse
+            local = rot.multiply(rot.multiply(parents[:, None, None], rotations[None, None, sample, j]),
+                                 rolls[None, :, None])  # (A, B, T, 4)
+            z = (rot.to_6d(local) - stats["mean"][j]) / stats["std"][j]
+            costs.append(np.square(z).sum(axis=(-1, -2)))
+        # Viterbi over the chain: best total cost ending with each roll of joint k.
+        total = costs[0][0]
+        back = []
+        for cost in costs[1:]:
+            candidates = total[:, None] + cost
+            back.append(np.argmin(candidates, axis=0))
+            total = candidates.min(axis=0)
+        choice = [int(np.argmin(total))]
+        for pointer in reversed(back):
+            choice.append(int(pointer[choice[-1]]))
+        choice.reverse()
+        for k, j in enumerate(joints):
+            parent_roll = inverse[choice[k - 1]] if k else rot.identity()
+            rotations[:, j] = rot.multiply(rot.multiply(parent_roll, rotations[:, j]), rolls[choice[k]])
+    return Motion(sk, rotations, motion.positions, motion.fps)
