@@ -261,15 +261,16 @@ def run_nodes(args) -> int:
     print(f"each row: stylizer process (reliable QoS) <- synthetic walk frames from this process, "
           f"{NODE_WARMUP:g} s warm-up, {args.seconds:g} s measured")
     columns = ("rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)", "dropped",
-               "CPU (%)")
+               "CPU (%)", "bench CPU")
     print(" ".join(f"{c:>10}" for c in columns))
     with LiveGraph("motion_style_bench", logs) as graph:
         for rate, performers in rows:
-            latency_ms, sent, cpu = _stream_nodes(graph, path, rate, performers, args.seconds)
+            latency_ms, sent, cpu, own = _stream_nodes(graph, path, rate, performers, args.seconds)
             p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
             print(f"{rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} {worst:>10.2f} "
-                  f"{sent - len(latency_ms):>10} {cpu:>10.0f}")
-    print(f"load average {_load()} (after); CPU: the stylizer process, % of one core")
+                  f"{sent - len(latency_ms):>10} {cpu:>10.0f} {own:>10.0f}")
+    print(f"load average {_load()} (after); CPU: the stylizer process, % of one core; bench CPU: "
+          "this process's (publishing and receiving every frame), which shares the cores")
     return 0
 
 
@@ -294,8 +295,9 @@ def _cpu_seconds(pid: int) -> float:
 
 def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
     """One row: a fresh stylizer for ``performers`` performers at ``rate`` Hz; returns the latency
-    (ms) of every measured frame that came back, how many were sent, and the stylizer's CPU use
-    (% of one core) over the measured interval."""
+    (ms) of every measured frame that came back, how many were sent, and the CPU use of the
+    stylizer and of this process (% of one core) over the measured interval."""
+    import os
     import time
 
     import numpy as np
@@ -331,7 +333,7 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
     sent: list[list[int]] = [[] for _ in topics]  # per performer: stamps sent while measuring
     start = time.monotonic()
     measure_from, end = start + NODE_WARMUP, start + NODE_WARMUP + seconds
-    cpu_from: list[tuple[float, float]] = []  # (CPU seconds, wall time) when measuring began
+    cpu_from: list[tuple[float, float, float]] = []  # stylizer's and own CPU s, wall s at the start
     count = 0
 
     def publish() -> None:
@@ -340,7 +342,7 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
         if now >= end:
             return
         if now >= measure_from and not cpu_from:
-            cpu_from.append((_cpu_seconds(proc.pid), now))
+            cpu_from.append((_cpu_seconds(proc.pid), _cpu_seconds(os.getpid()), now))
         for publisher, stamps in zip(publishers, sent):
             msg = JointState(name=layout.names, position=frames[count % len(frames)])
             msg.header.stamp = clock.now().to_msg()
@@ -351,7 +353,10 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
 
     timer = node.create_timer(1.0 / rate, publish)
     graph.spin_until(lambda: time.monotonic() >= end, "the stream", seconds + NODE_WARMUP + 60)
-    cpu = 100 * (_cpu_seconds(proc.pid) - cpu_from[0][0]) / (time.monotonic() - cpu_from[0][1])
+    stylizer_cpu, own_cpu, wall = cpu_from[0]
+    wall = time.monotonic() - wall
+    cpu = 100 * (_cpu_seconds(proc.pid) - stylizer_cpu) / wall
+    own = 100 * (_cpu_seconds(os.getpid()) - own_cpu) / wall
     graph.spin_for(NODE_DRAIN)
     node.destroy_timer(timer)
     for publisher in publishers:
@@ -360,4 +365,4 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
         node.destroy_subscription(subscription)
     graph.stop("stylizer")
     latency = [got[s] - s for stamps, got in zip(sent, arrivals) for s in stamps if s in got]
-    return np.array(latency) / 1e6, sum(map(len, sent)), cpu
+    return np.array(latency) / 1e6, sum(map(len, sent)), cpu, own
