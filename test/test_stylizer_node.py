@@ -156,8 +156,9 @@ def message(stamp_ns, names, positions):
 
 def offline(model, frames, controls=None):
     """What a fresh session makes of ``frames``: per frame (JointState positions, rotations, root);
-    ``controls[k](session)`` runs before frame k."""
-    session = RecurrentSession(model, 1, FPS)
+    ``controls[k](session)`` runs before frame k. The node's defaults: foot locking on, the root
+    pulled towards the input's with a 2 s time constant."""
+    session = RecurrentSession(model, 1, FPS, follow_seconds=2.0)
     out = []
     for k, (stamp_ns, positions) in enumerate(frames):
         if controls and k in controls:

@@ -127,6 +127,10 @@ class Stylizer(PlayerNode):
         threads = self.param("threads", 1, "ONNX Runtime threads per performer", 1, 16)
         foot_lock = self.param("foot_lock", True, "keep the feet the input plants planted in the "
                                "output (causal leg IK)")
+        follow = self.param("follow_seconds", 2.0, "time constant (s) with which the stylized root "
+                            "trajectory is pulled towards the input's, so the avatar stays with its "
+                            "performer; 0 = free (the style's own speed and turns, drifting)",
+                            0.0, 600.0)
         if backend not in BACKENDS:
             raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
         if reliability not in RELIABILITY:
@@ -138,7 +142,8 @@ class Stylizer(PlayerNode):
         self.backend = backend
         self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
         sessions = [RecurrentSession(model, 1, input_fps or None, blend, threads,
-                                     foot_lock=foot_lock) for _ in prefixes]
+                                     follow_seconds=follow or None, foot_lock=foot_lock)
+                    for _ in prefixes]
         session = sessions[0]
         self.styles = session.styles
         self.period_ns = round(1e9 / session.input_fps)

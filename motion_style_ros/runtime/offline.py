@@ -8,10 +8,12 @@ register a factory in :data:`STYLIZERS` as they land.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-from motion_style_ros.core.motion import Motion
+if TYPE_CHECKING:  # the CLI imports this module to build its parser: keep it light
+    from motion_style_ros.core.motion import Motion
 
-Stylizer = Callable[[Motion, str], Motion]
+Stylizer = Callable[["Motion", str], "Motion"]
 
 
 def _per_rate(session_class, model: str, alpha: float, threads: int) -> Stylizer:
@@ -19,7 +21,7 @@ def _per_rate(session_class, model: str, alpha: float, threads: int) -> Stylizer
     session_class(model, threads=threads)  # fail now, in one line, on a missing or bad model
     sessions: dict[float, object] = {}
 
-    def stylize(source: Motion, target_style: str) -> Motion:
+    def stylize(source: "Motion", target_style: str) -> "Motion":
         if source.fps not in sessions:
             sessions[source.fps] = session_class(model, input_fps=source.fps, threads=threads)
         return sessions[source.fps].run(source, target_style, alpha)
