@@ -12,7 +12,7 @@ def add_parser(subparsers):
     targets = p.add_subparsers(dest="target", metavar="TARGET", required=True)
     recurrent = targets.add_parser(
         "recurrent", help="the Style-ERD streaming session",
-        description="Stream a synthetic canonical-skeleton performance through RecurrentSession "
+        description="Stream a synthetic canonical-skeleton walk through RecurrentSession "
                     "(the code path of the ROS node) and report the time of each step() call "
                     "(p50/p99, microseconds) for several numbers of performers, and the largest "
                     "number of performers whose p99 step time fits one input frame (real time).",
@@ -159,26 +159,26 @@ def _model_calls(path, card: dict, checkpoint, threads: int, calls: int = 2000) 
 
 def _time_steps(path, performers: int, seconds: float, input_fps: float, threads: int):
     """The session and the wall time of each of its step() calls (microseconds) over ``seconds``
-    of a synthetic stream: every joint swinging about its own axis, the pelvis walking forward."""
+    of a synthetic walk (each performer at its own phase), so that every part of a step runs:
+    features, the model, decoding and foot locking on planted feet."""
     import time
 
     import numpy as np
 
-    from motion_style_ros.core import rotations as rot
+    from motion_style_ros.core.synthetic import synthetic_motion
     from motion_style_ros.runtime.session import RecurrentSession
 
     session = RecurrentSession(path, performers, input_fps=input_fps, threads=threads)
-    rng = np.random.default_rng(0)
-    axes = rng.normal(size=(performers, 22, 3))
-    phase = rng.uniform(0, 2 * np.pi, size=(performers, 22))
+    frames = max(2, round(seconds * input_fps))
+    walks = [synthetic_motion("walk", input_fps, frames / input_fps, start=0.37 * k)
+             for k in range(performers)]
+    rotations = np.stack([w.rotations for w in walks], axis=1)
+    roots = np.stack([w.positions[:, w.skeleton.pelvis] + [1.0 * k, 0.0, 0.0]
+                      for k, w in enumerate(walks)], axis=1)
     micros = []
-    for k in range(max(2, round(seconds * input_fps))):
-        t = k / input_fps
-        q = rot.from_axis_angle(axes, 0.4 * np.sin(2 * np.pi * t + phase))
-        root = np.stack([np.arange(performers), np.full(performers, 0.9), np.full(performers, 1.2 * t)],
-                        axis=-1)
+    for k in range(frames):
         start = time.perf_counter_ns()
-        session.step(q, root, t)
+        session.step(rotations[k], roots[k], k / input_fps)
         micros.append((time.perf_counter_ns() - start) / 1000)
     return session, np.array(micros)
 
