@@ -150,7 +150,11 @@ def _model_calls(path, card: dict, checkpoint, threads: int, calls: int = 2000) 
         print(f"{checkpoint}: no training checkpoint, the torch model is not timed")
         return out
     torch.set_num_threads(threads)
-    step = StepGraph(load_generator(checkpoint))
+    generator = load_generator(checkpoint)
+    if (generator.cfg.state_size, list(generator.cfg.styles)) != (card["state_size"], card["styles"]):
+        print(f"{checkpoint}: another model than {path.name}, the torch model is not timed")
+        return out
+    step = StepGraph(generator)
     tensors = {k: torch.from_numpy(v) for k, v in inputs.items()}
     with torch.inference_mode():
         out["torch"] = timed(lambda: step(**tensors))

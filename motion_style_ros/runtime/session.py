@@ -208,7 +208,9 @@ class RecurrentSession:
         frame = self._decoder(out["output"])
         if self._foot_lock is not None:
             ankles = self._encoder.positions[:, self._foot_lock.ankles]
-            frame = self._foot_lock(*frame, ankles), frame[1]
+            rotations, root = self._foot_lock(*frame, ankles)
+            self._decoder.shift(root - frame[1])
+            frame = rotations, root
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)
         self._outputs = [*self._outputs[-1:], (t, *frame)]
