@@ -288,11 +288,6 @@ class StreamDecoder:
         self._yaw[which] = np.asarray(yaw, dtype=np.float64)[which]
         self._fresh[which] = True
 
-    def shift(self, delta: np.ndarray) -> None:
-        """Move every performer's ground point by ``delta`` ``(P, 3)`` (its horizontal part): the
-        next frames continue from there."""
-        self._ground += np.asarray(delta, dtype=np.float64) * np.array([1.0, 0.0, 1.0])
-
     def pull(self, ground: np.ndarray, yaw: np.ndarray, gain: float) -> None:
         """Move every performer's ground point and heading the fraction ``gain`` of the way towards
         ``ground`` and ``yaw`` (bounds the drift of an integrated trajectory from a live one)."""

@@ -5,9 +5,7 @@ tends to slide. This is the animator's fix, done one frame at a time (no lookahe
 stylizer: a foot is in contact while the *input*'s ankle is low and slow (real capture knows when
 a foot is planted; the stylized output, sliding, does not), and the output's ankle is held: on
 the frame contact starts, its position is recorded; while it lasts, hip and knee are turned (two-bone IK, knee
-bending in its own plane) so that the ankle stays there, after the root has been carried over the
-ground by the planted feet's slip (so the stylized stride, not the integrated root speed, sets how
-fast the body travels), and the foot keeps the world orientation
+bending in its own plane) so that the ankle stays there, and the foot keeps the world orientation
 the stylizer gave it (its heel-toe roll); when contact ends (or the leg would have to stretch more than
 ``max_stretch``), the lock fades out over ``release_seconds``. Only the local rotations of the
 upper leg, lower leg and foot change; the root and every other joint are untouched.
@@ -24,7 +22,6 @@ from motion_style_ros.core.skeleton import Skeleton, canonical
 
 LEGS = (("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R"))
 _EPS = 1e-9
-_GROUND = np.array([1.0, 0.0, 1.0])  # horizontal components
 
 
 class FootLock:
@@ -67,10 +64,10 @@ class FootLock:
         return self._ankle
 
     def __call__(self, rotations: np.ndarray, root_positions: np.ndarray,
-                 input_ankles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Local rotations ``(P, J, 4)`` and pelvis positions ``(P, 3)`` of the output frame with
-        planted feet locked (new arrays); ``input_ankles`` ``(P, 2, 3)``: world positions of the
-        input's ankles (:attr:`ankles`) in the frame the output was made from."""
+                 input_ankles: np.ndarray) -> np.ndarray:
+        """Local rotations ``(P, J, 4)`` of the output frame with the legs of planted feet locked
+        (a new array); ``input_ankles`` ``(P, 2, 3)``: world positions of the input's ankles
+        (:attr:`ankles`) in the frame the output was made from."""
         sk = self.skeleton
         positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
         positions[:, sk.pelvis] = root_positions
@@ -85,13 +82,6 @@ class FootLock:
         self._spent &= contact
         start = contact & ~self._locked & ~self._spent
         self._target[start] = ankle[start]
-        # The body is carried by its planted feet: the root moves over the ground by however far
-        # they would slip (their mean), so the stride sets the speed; leg IK takes what is left.
-        planted = contact & ~self._spent
-        slip = np.where(planted[..., None], self._target - ankle, 0.0) * _GROUND
-        shift = slip.sum(axis=1) / np.maximum(planted.sum(axis=1), 1)[:, None]
-        root_positions = root_positions + shift
-        hip, knee, ankle = (x + shift[:, None] for x in (hip, knee, ankle))
         stretched = self._locked & (np.linalg.norm(ankle - self._target, axis=-1) > self.max_stretch)
         self._spent |= stretched
         locked = contact & ~self._spent
@@ -100,7 +90,7 @@ class FootLock:
         self._locked = locked
         self._weight = np.where(locked, 1.0, np.maximum(self._weight - self._fade, 0.0))
         if not self._weight.any():
-            return rotations.copy(), root_positions
+            return rotations.copy()
 
         # Locked: the ankle stays at its target. Released: the correction it had then fades out,
         # so the leg eases back onto the stylizer's swing rather than being held behind.
@@ -112,7 +102,7 @@ class FootLock:
         out[:, self._hip] = rot.multiply(rot.conjugate(parent), g_upper)
         out[:, self._knee] = rot.multiply(rot.conjugate(g_upper), g_lower)
         out[:, self._ankle] = rot.multiply(rot.conjugate(g_lower), g_foot)
-        return out, root_positions
+        return out
 
     def _two_bone(self, g_upper, g_lower, hip, knee, ankle, goal):
         """World rotations of upper and lower leg that put the ankle at ``goal`` (as near as the

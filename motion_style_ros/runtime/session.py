@@ -208,9 +208,7 @@ class RecurrentSession:
         frame = self._decoder(out["output"])
         if self._foot_lock is not None:
             ankles = self._encoder.positions[:, self._foot_lock.ankles]
-            rotations, root = self._foot_lock(*frame, ankles)
-            self._decoder.shift(root - frame[1])
-            frame = rotations, root
+            frame = self._foot_lock(*frame, ankles), frame[1]
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)
         self._outputs = [*self._outputs[-1:], (t, *frame)]
