@@ -30,7 +30,12 @@ def _export(path, last_weight: float | None):
     """Tiny networks with identity normalisation; ``last_weight=None`` keeps the generator at its
     start (the identity), else its last layer is drawn with that scale."""
     torch = pytest.importorskip("torch")
-    from motion_style_ros.models.stgcn import Generator, MappingNetwork, StyleEncoder, tiny
+    from motion_style_ros.models.stgcn import (
+        Generator,
+        MappingNetwork,
+        StyleEncoder,
+        tiny,
+    )
     from motion_style_ros.training.stgcn import write_model
 
     cfg = tiny(tuple(STYLES))

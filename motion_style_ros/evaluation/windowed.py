@@ -154,8 +154,8 @@ def bench_report(motion: Motion, model: str | Path = DEFAULT_MODEL, hops: tuple[
     ``step()`` streaming ``motion`` (a real clip, at its rate) at each hop with ``lookahead``."""
     path = model_path(str(model))
     card = read_card(path)
-    lines = [f"model: {path} ({card['window']}-frame windows, {card['fps']:g} fps; trained on: "
-             f"{card.get('training', {}).get('data', 'unknown data')}); ONNX Runtime on {threads} thread(s)"]
+    lines = [(f"model: {path} ({card['window']}-frame windows, {card['fps']:g} fps; trained on: "
+             f"{card.get('training', {}).get('data', 'unknown data')}); ONNX Runtime on {threads} thread(s)")]
     for performers in (1, 8):
         ms = window_times(path, performers, threads=threads)
         p50, p99 = np.percentile(ms, [50, 99])

@@ -28,7 +28,12 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from motion_style_ros.core.graph import ALL_CHANNELS, MOTION_CHANNELS, hierarchy, node_scatter
+from motion_style_ros.core.graph import (
+    ALL_CHANNELS,
+    MOTION_CHANNELS,
+    hierarchy,
+    node_scatter,
+)
 from motion_style_ros.models.style_erd import OUT_ROOT, orthonormal_6d
 
 SLOPE = 0.2  # leaky ReLU

@@ -74,20 +74,31 @@ class RecurrentSession:
         path = model_path(str(model))
         card = read_card(path)
         _check_card(card, path)
-        if not (isinstance(performers, (int, np.integer)) and performers >= 1):
-            raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
         self.model = OnnxModel(path, threads)
         missing = set(INPUTS) - set(self.model.input_names)
         if missing:
             raise MotionStyleError(
                 f"{path}: not a recurrent stylizer (no inputs {', '.join(sorted(missing))})"
             )
+        self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
+                           foot_lock)
+        self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
+        self.restart()
+
+    def _setup_stream(self, card: dict, performers: int, input_fps: float | None, blend_seconds: float,
+                      gap_seconds: float, follow_seconds: float | None, foot_lock: bool,
+                      delay_frames: int = 0) -> None:
+        """Everything of the stream that does not depend on the model: rates and latency (plus
+        ``delay_frames`` model frames of the model's own), controls, feature encoder and decoder,
+        foot locking."""
+        if not (isinstance(performers, (int, np.integer)) and performers >= 1):
+            raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
         self.card = card
         self.styles: list[str] = list(card["styles"])
         self.fps = float(card["fps"])
         self.performers = int(performers)
         self.input_fps = self.fps if input_fps is None else _positive(input_fps, "input frame rate")
-        self.latency = max(0.0, 1.0 / self.fps - 1.0 / self.input_fps)
+        self.latency = delay_frames / self.fps + max(0.0, 1.0 / self.fps - 1.0 / self.input_fps)
         self.gap_seconds = _positive(gap_seconds, "gap time")
         self._follow_gain = (
             0.0 if follow_seconds is None
@@ -99,9 +110,7 @@ class RecurrentSession:
         self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
         self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
-        self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
         self._fresh = np.ones(self.performers, dtype=bool)
-        self.restart()
 
     # --- controls ---------------------------------------------------------------------------
 

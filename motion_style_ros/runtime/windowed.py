@@ -32,16 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_style_ros.core.features import StreamDecoder, StreamEncoder, encode
-from motion_style_ros.core.foot_lock import LEGS, FootLock
+from motion_style_ros.core.features import encode
+from motion_style_ros.core.foot_lock import LEGS
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
-from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.runtime.controls import Controls, smoothstep, unit_interval
+from motion_style_ros.runtime.controls import smoothstep, unit_interval
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
-from motion_style_ros.runtime.session import RecurrentSession, _check_card, _positive
+from motion_style_ros.runtime.session import RecurrentSession, _check_card
 
 DEFAULT_MODEL = "stgcn.onnx"
 ROOT_MOTION = [0, 1, 3]  # the root block's velocity and yaw-rate columns
@@ -98,8 +97,6 @@ class WindowedSession(RecurrentSession):
         path = model_path(str(model))
         card = read_card(path)
         _check_card(card, path, "windowed", ("window", "latent_dim", "style_dim", "files"))
-        if not (isinstance(performers, (int, np.integer)) and performers >= 1):
-            raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
         self.window = int(card["window"]) if window is None else window
         if not (isinstance(self.window, (int, np.integer)) and self.window >= 4 and self.window % 4 == 0):
             raise MotionStyleError(f"window must be a multiple of 4 frames, at least 4; got {window!r}")
@@ -108,29 +105,13 @@ class WindowedSession(RecurrentSession):
         if not isinstance(lookahead, (int, np.integer)):
             raise MotionStyleError(f"lookahead must be a whole number of frames, got {lookahead!r}")
         self.hop, self.lookahead = int(hop), int(lookahead)
-        self.card = card
         self.model = OnnxModel(path, threads)
         companions = {k: model_path(str(path.with_name(name))) for k, name in card["files"].items()}
         self.mapping = OnnxModel(companions["mapping"], threads)
         self.style_encoder = OnnxModel(companions["style_encoder"], threads)
-        self.styles: list[str] = list(card["styles"])
-        self.fps = float(card["fps"])
-        self.performers = int(performers)
-        self.input_fps = self.fps if input_fps is None else _positive(input_fps, "input frame rate")
-        self.latency = self.lookahead / self.fps + max(0.0, 1.0 / self.fps - 1.0 / self.input_fps)
-        self.gap_seconds = _positive(gap_seconds, "gap time")
-        self._follow_gain = (
-            0.0 if follow_seconds is None
-            else 1.0 - np.exp(-1.0 / (self.fps * _positive(follow_seconds, "follow time")))
-        )
-        self.skeleton = canonical()
-        neutral = card.get("neutral_style", self.styles[0])
-        self._controls = Controls(self.styles, self.performers, neutral, blend_seconds)
-        self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
-        self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
-        self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
+        self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
+                           foot_lock, delay_frames=self.lookahead)
         self._ankle_joints = [self.skeleton.index(leg[-1]) for leg in LEGS]
-        self._fresh = np.ones(self.performers, dtype=bool)
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
         # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds

@@ -46,10 +46,12 @@ from motion_style_ros.training.recurrent import (
     Clips,
     Data,
     Losses,
-    Trainer as RecurrentTrainer,
     _normalisation,
     load_data,
     windows,
+)
+from motion_style_ros.training.recurrent import (
+    Trainer as RecurrentTrainer,
 )
 
 NAME = "stgcn"
@@ -422,14 +424,14 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
         "history": trainer.summary(),
         "exported": f"exponential moving averages of the three networks' weights (decay {cfg.ema})",
         "differences_from_paper": [
-            f"widths {cfg.widths} instead of (64, 128, 256), {cfg.window}-frame windows at 30 fps, "
-            f"a {cfg.mapping_hidden}-wide mapping network instead of 1024 (2-hour CPU budget)",
-            "6D rotations, positions, velocities, root motion and foot contacts per joint node; the "
-            "generator outputs the root's velocity, height and yaw rate too, as a change to the input",
-            "style encoder and discriminator average over time (any clip length) instead of a "
-            "convolution over the whole clip; the style encoder has a style classifier head",
-            "losses: non-saturating adversarial with R1 (weight 1), foot-contact loss, cycle and "
-            "identity measured by rotation angle, FK positions, velocities and root",
+            (f"widths {cfg.widths} instead of (64, 128, 256), {cfg.window}-frame windows at 30 fps, "
+            f"a {cfg.mapping_hidden}-wide mapping network instead of 1024 (2-hour CPU budget)"),
+            ("6D rotations, positions, velocities, root motion and foot contacts per joint node; the "
+            "generator outputs the root's velocity, height and yaw rate too, as a change to the input"),
+            ("style encoder and discriminator average over time (any clip length) instead of a "
+            "convolution over the whole clip; the style encoder has a style classifier head"),
+            ("losses: non-saturating adversarial with R1 (weight 1), foot-contact loss, cycle and "
+            "identity measured by rotation angle, FK positions, velocities and root"),
             f"Adam betas {cfg.betas}, learning rate {cfg.lr} (mapping {cfg.lr_mapping}), batch {cfg.batch}",
         ],
     }
