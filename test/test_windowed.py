@@ -185,6 +185,7 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
     assert [r["lookahead"] for r in rows] == [0, 8]
     for row in rows:
         assert row["jump_ratio_max"] == pytest.approx(1.0, abs=1e-3)
+        assert row["jump_over_most_lookahead_max"] == pytest.approx(1.0, abs=1e-3)
         assert row["distance_from_most_lookahead_m"] < 1e-6
         assert row["style_accuracy"] == 0.0  # the input is masculine, not elderly
     spread = windowed.diversity([walk[:48]], ["elderly", "active"], random_model, seeds=(0, 1))

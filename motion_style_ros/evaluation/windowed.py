@@ -58,7 +58,8 @@ def step_times(session: WindowedSession, motion: Motion, style: str) -> np.ndarr
 class ReferenceStylizer:
     """The windowed session with its target code from a reference clip instead of a latent seed:
     for each pair, a test take of the target style and *another* content (chosen per pair with
-    the seed) goes through the style encoder, under the target style's head. It only restyles the
+    the seed; at least a window long) goes through the style encoder, under the target style's
+    head. It only restyles the
     test clips it was built with (the reference must not share the source's content)."""
 
     def __init__(self, clips: list[Clip], model: str | Path = DEFAULT_MODEL, alpha: float = 1.0,
@@ -74,9 +75,11 @@ class ReferenceStylizer:
         info = self._info.get(id(source))
         if info is None:
             raise MotionStyleError("the reference stylizer restyles only the test clips it was built with")
-        candidates = [m for content, m in self._by_style.get(target_style, []) if content != info.content]
+        candidates = [m for content, m in self._by_style.get(target_style, [])
+                      if content != info.content and m.n_frames >= self._session.window]
         if not candidates:
-            raise SkipPair(f"no test take in style {target_style} of another content than {info.content}")
+            raise SkipPair(f"no test take in style {target_style} of another content than "
+                           f"{info.content} with a window's {self._session.window} frames")
         rng = np.random.default_rng([self._seed, zlib.crc32(f"{info.name}>{target_style}".encode())])
         self._session.set_reference(candidates[int(rng.integers(len(candidates)))], style=target_style)
         return self._session.run(source, target_style, self._alpha)
@@ -96,10 +99,11 @@ def lookahead_costs(pairs: list[tuple[Motion, str]], model: str | Path = DEFAULT
                     lookaheads: tuple[int, ...] = LOOKAHEADS, hop: int = 4,
                     judge: Judge | None = None) -> list[dict]:
     """One row per lookahead over ``(source clip, target style)`` pairs (30 fps canonical clips):
-    the largest joint jump between consecutive output frames over the input's own (seams show as
-    a ratio above 1), the style judge's accuracy, foot skating (m/s) of output and input, and the
-    mean pelvis-relative joint distance (m) from the output with the most lookahead (the window
-    minus one frame: as much context as a window gives)."""
+    the largest joint jump between consecutive output frames over the input's own (a style that
+    moves faster raises it too) and over the output's with the most lookahead (the window minus
+    one frame: as much context as a window gives; seams show as a ratio above 1), the style
+    judge's accuracy, foot skating (m/s) of output and input, and the mean pelvis-relative joint
+    distance (m) from the output with the most lookahead."""
     judge = judge or Judge("style")
     window = int(read_card(model_path(str(model)))["window"])
 
@@ -116,6 +120,8 @@ def lookahead_costs(pairs: list[tuple[Motion, str]], model: str | Path = DEFAULT
             "lookahead": lookahead,
             "latency_ms": round(1000 * lookahead / 30.0, 1),
             "jump_ratio_max": round(max(largest_jump(o) / largest_jump(s) for o, (s, _) in zip(outs, pairs)), 3),
+            "jump_over_most_lookahead_max": round(max(largest_jump(o) / largest_jump(m)
+                                                      for o, m in zip(outs, most)), 3),
             "style_accuracy": round(float(np.mean([lab == st for lab, (_, st) in zip(labels, pairs)])), 3),
             "foot_skating": round(float(np.nanmean([foot_skating(o) for o in outs])), 4),
             "input_foot_skating": round(float(np.nanmean([foot_skating(s) for s, _ in pairs])), 4),

@@ -14,7 +14,8 @@ differs:
 - **Latency.** Frame ``t`` is emitted when frame ``t + lookahead`` comes in: the windows see
   ``lookahead`` frames of its future. More lookahead means more context and more windows to
   blend (smoother, closer to offline quality), at ``lookahead / fps`` seconds of delay. After a
-  start or a reset, the performer's first stylized frame is held for ``lookahead`` frames.
+  start or a reset, the performer's first stylized frame is shown for ``lookahead`` frames,
+  refined as the windows that see its future come in.
 - **Style codes.** Each performer has a code per style from the mapping network and its latent
   seed (:func:`latent`: the same seed gives the same code on every machine), or a reference clip's
   code through the style encoder (:meth:`set_reference`). The code a window gets is the codes
@@ -198,8 +199,6 @@ class WindowedSession(RecurrentSession):
         self._history = np.zeros((self.performers, self.window, self._n_in), dtype=np.float32)
         self._ola = OverlapAdd(self.window, self.lookahead, self.performers, self._n_out)
         self._start = np.zeros(self.performers, dtype=int)  # each performer's first frame
-        self._next = np.zeros(self.performers, dtype=int)  # the next frame each one emits
-        self._held = np.zeros((self.performers, self._n_out))
         # the input's ankles of the frames in the overlap-add slots (for foot locking)
         self._ankles = np.zeros((self.performers, self.lookahead + 1, 2, 3))
 
@@ -222,22 +221,18 @@ class WindowedSession(RecurrentSession):
             self._ankles[fresh] = self._ankles[fresh, -1:]
             if self._foot_lock is not None:
                 self._foot_lock.reset(fresh)
-            self._start[fresh] = self._next[fresh] = n
+            self._start[fresh] = n
         style, alpha = self._controls.advance(1.0 / self.fps)
         self._advance_codes(1.0 / self.fps)
         due = np.maximum(n - lookahead, self._start)  # the frame each performer emits now
-        new = due >= self._next
         slot = due - (n - lookahead)
-        if n - self._last_window >= self.hop or not self._ola.covered(slot)[new].all():
+        if n - self._last_window >= self.hop or not self._ola.covered(slot).all():
             self._ola.add(self.model.run(features=self._history, code=self._code(style, alpha))["output"])
             self._last_window = n
         frames = self._ola.frame(slot)
-        # performers still in their first lookahead frames hold their first frame (no root motion)
-        still = self._held.copy()
-        still[:, ROOT_MOTION] = 0.0
-        frames = np.where(new[:, None], frames, still)
-        self._held[new] = frames[new]
-        self._next[new] = due[new] + 1
+        # A performer's first frame is shown until its lookahead has come in, refined as windows
+        # arrive, and stays where it started: its root does not move.
+        frames[np.ix_(due == self._start, ROOT_MOTION)] = 0.0
         self._fresh[:] = False
         self._n += 1
         frame = self._decoder(frames)
