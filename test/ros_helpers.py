@@ -1,7 +1,6 @@
 """Helpers for tests that run nodes as real processes and talk to them over DDS from a test node
 (the launch_testing pattern, by hand)."""
 
-import signal
 import subprocess
 import sys
 import time
@@ -12,6 +11,8 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+
+from motion_style_ros.cli.live import stop_process
 
 TIMEOUT = 60.0  # generous bound for readiness on a loaded machine; never a timing assertion
 BEST_EFFORT = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -33,14 +34,7 @@ def start_node(name, env, log=None, **params):
 
 def stop(proc, timeout=20.0):
     """SIGINT (a clean shutdown), then kill if it hangs; the exit code."""
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    return proc.returncode
+    return stop_process(proc, timeout)
 
 
 def stamps(messages):

@@ -112,16 +112,8 @@ class LiveGraph:
             self.executor.spin_once(timeout_sec=min(0.01, max(end - time.monotonic(), 0.0)))
 
     def stop(self, name: str) -> int:
-        """SIGINT (the nodes' clean exit), then kill after STOP_SECONDS; the exit status."""
-        proc = self.processes.pop(name)
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(STOP_SECONDS)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        return proc.returncode
+        """Stop one node process (:func:`stop_process`); its exit status."""
+        return stop_process(self.processes.pop(name))
 
     def close(self) -> None:
         for name in reversed(list(self.processes)):
@@ -140,3 +132,15 @@ class LiveGraph:
 
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
+
+
+def stop_process(proc: subprocess.Popen, timeout: float = STOP_SECONDS) -> int:
+    """SIGINT (the nodes' clean exit), then kill after ``timeout`` seconds; the exit status."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    return proc.returncode
