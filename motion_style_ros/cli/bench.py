@@ -265,16 +265,19 @@ def run_nodes(args) -> int:
     print(f"each row: stylizer process (reliable QoS) <- synthetic walk frames from this process, "
           f"{NODE_WARMUP:g} s warm-up, {args.seconds:g} s measured")
     columns = ("rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)", "dropped",
-               "CPU (%)", "bench CPU")
+               "node p99", "CPU (%)", "bench CPU")
     print(" ".join(f"{c:>10}" for c in columns))
     with LiveGraph("motion_style_bench", logs) as graph:
         for rate, performers in rows:
-            latency_ms, sent, cpu, own = _stream_nodes(graph, path, rate, performers, args.seconds)
+            latency_ms, sent, node_p99, cpu, own = _stream_nodes(graph, path, rate, performers,
+                                                                 args.seconds)
             p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
             print(f"{rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} {worst:>10.2f} "
-                  f"{sent - len(latency_ms):>10} {cpu:>10.0f} {own:>10.0f}")
-    print(f"load average {_load()} (after); CPU: the stylizer process, % of one core; bench CPU: "
-          "this process's (publishing and receiving every frame), which shares the cores")
+                  f"{sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} {own:>10.0f}")
+    print(f"load average {_load()} (after); node p99: the stylizer's own p99 (ms, worst performer) "
+          "from a message's arrival in its DDS reader to the stylized frame's publication, from its "
+          "/diagnostics; CPU: the stylizer process, % of one core; bench CPU: this process's "
+          "(publishing and receiving every frame), which shares the cores")
     return 0
 
 
@@ -299,12 +302,14 @@ def _cpu_seconds(pid: int) -> float:
 
 def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
     """One row: a fresh stylizer for ``performers`` performers at ``rate`` Hz; returns the latency
-    (ms) of every measured frame that came back, how many were sent, and the CPU use of the
-    stylizer and of this process (% of one core) over the measured interval."""
+    (ms) of every measured frame that came back, how many were sent, the node's own p99 (ms, its
+    last diagnostics, worst performer), and the CPU use of the stylizer and of this process (% of
+    one core) over the measured interval."""
     import os
     import time
 
     import numpy as np
+    from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
 
@@ -327,6 +332,12 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
                                                        info["received_timestamp"]),
             reliable)
         for t, got in zip(topics, arrivals)]
+    node_p99: dict[str, float] = {}  # per performer, from the stylizer's last diagnostics
+    diagnostics = node.create_subscription(
+        DiagnosticArray, "/diagnostics",
+        lambda msg: node_p99.update({s.name: float(next(v.value for v in s.values
+                                                        if v.key == "latency_p99_ms"))
+                                     for s in msg.status}), 10)
     graph.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in publishers)
                      and all(s.get_publisher_count() >= 1 for s in subscriptions),
                      f"the stylizer for {performers} performer(s) to start", STARTUP_SECONDS)
@@ -361,12 +372,15 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
     wall = time.monotonic() - wall
     cpu = 100 * (_cpu_seconds(proc.pid) - stylizer_cpu) / wall
     own = 100 * (_cpu_seconds(os.getpid()) - own_cpu) / wall
-    graph.spin_for(NODE_DRAIN)
+    node_p99.clear()  # the diagnostics of the measured stream, not of the warm-up
+    graph.spin_for(NODE_DRAIN + 1.0)  # the last frames' outputs, and the next diagnostics
     node.destroy_timer(timer)
+    node.destroy_subscription(diagnostics)
     for publisher in publishers:
         node.destroy_publisher(publisher)
     for subscription in subscriptions:
         node.destroy_subscription(subscription)
     graph.stop("stylizer")
     latency = [got[s] - s for stamps, got in zip(sent, arrivals) for s in stamps if s in got]
-    return np.array(latency) / 1e6, sum(map(len, sent)), cpu, own
+    return (np.array(latency) / 1e6, sum(map(len, sent)), max(node_p99.values(), default=np.nan),
+            cpu, own)

@@ -24,6 +24,7 @@ from geometry_msgs.msg import Point
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import InvalidTopicNameException
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.subscription import MessageInfo
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -73,13 +74,13 @@ class Performer:
             self.markers_out = (node.create_publisher(MarkerArray, self.topic("stylized/markers"), qos)
                                 if markers else None)
             node.create_subscription(JointState, self.topic("joint_states"),
-                                     lambda msg: node.on_state(self, msg), qos)
+                                     lambda msg, info: node.on_state(self, msg, info), qos)
         except InvalidTopicNameException as exc:
             raise MotionStyleError(f"parameter performers: {exc}") from None
         self.input = node.resolve_topic_name(self.topic("joint_states"))
         self.counts = dict.fromkeys(["frames_in", "frames_out", *(f"dropped_{r}" for r in DROP_REASONS)],
                                     0)
-        self.latencies: deque[float] = deque(maxlen=LATENCY_WINDOW)
+        self.latencies: deque[int] = deque(maxlen=LATENCY_WINDOW)  # ns, DDS receipt -> published
         self.reported_drops = 0
         self.names: tuple[str, ...] = ()
         self.slots = np.zeros(0, dtype=np.intp)  # input index of each layout name
@@ -219,8 +220,7 @@ class Stylizer(PlayerNode):
 
     # --- streaming ------------------------------------------------------------------------------
 
-    def on_state(self, p: Performer, msg: JointState) -> None:
-        start = time.perf_counter()
+    def on_state(self, p: Performer, msg: JointState, info: MessageInfo) -> None:
         p.counts["frames_in"] += 1
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         if stamp_ns == 0:  # unstamped: the frame is taken as of now
@@ -247,11 +247,11 @@ class Stylizer(PlayerNode):
         out[p.slots] = self.layout.encode(rotations, root)
         frame_id = self.settings["frame_id"] or msg.header.frame_id
         p.state_out.publish(joint_state(p.names, out, msg.header.stamp, frame_id))
+        p.latencies.append(time.time_ns() - info["received_timestamp"])
         p.counts["frames_out"] += 1
         self._add_point(p, stamp_ns, out, frame_id)
         if p.markers_out is not None:
             p.markers_out.publish(self._markers(p, rotations, root, msg.header.stamp))
-        p.latencies.append(time.perf_counter() - start)
 
     def _check(self, p: Performer, msg: JointState, stamp_ns: int) -> np.ndarray:
         """The message's positions, or Dropped; names are checked by the layout's decode."""
@@ -352,7 +352,7 @@ class Stylizer(PlayerNode):
 
     def _status(self, p: Performer) -> DiagnosticStatus:
         dropped = p.dropped
-        ms = 1e3 * np.array(p.latencies)
+        ms = 1e-6 * np.array(p.latencies)
         p50, p99 = (np.percentile(ms, [50, 99]) if len(ms) else (np.nan, np.nan))
         values = {**p.counts, "dropped": dropped, "latency_p50_ms": f"{p50:.3f}",
                   "latency_p99_ms": f"{p99:.3f}", "model": str(p.session.model.path),
