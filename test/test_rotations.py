@@ -36,6 +36,26 @@ def test_euler_round_trip_any_order(order):
     assert np.allclose(back, angles, atol=1e-8)
 
 
+@pytest.mark.parametrize("order", ["ZXY", "XYZ", "YZX", "ZYX"])
+def test_euler_at_gimbal_lock_composes_back(order):
+    angles = RNG.uniform(-170, 170, size=(20, 3))
+    angles[:10, 1], angles[10:, 1] = 90.0, -90.0
+    q = rot.from_euler(angles, order, degrees=True)
+    back = rot.to_euler(q, order, degrees=True)
+    assert np.allclose(back[:, 2], 0.0)  # the first angle takes the whole turn
+    assert np.allclose(rot.to_matrix(rot.from_euler(back, order, degrees=True)), rot.to_matrix(q), atol=1e-6)
+
+
+def test_small_and_large_batches_agree():
+    """One streamed frame takes the matrix forms, a clip the elementwise ones: same numbers."""
+    a, b = random_quats(600), random_quats(600)
+    v = RNG.normal(size=(600, 3))
+    for small in (slice(0, 1), slice(0, 22), slice(0, 256)):
+        assert np.allclose(rot.multiply(a[small], b[small]), rot.multiply(a, b)[small], atol=1e-14)
+        assert np.allclose(rot.rotate(a[small], v[small]), rot.rotate(a, v)[small], atol=1e-14)
+    assert np.allclose(rot.rotate(a[:1], v), scipy_of(a[:1]).apply(v), atol=1e-12)  # broadcast
+
+
 def test_matrix_and_6d_round_trip():
     q = random_quats(300)
     assert np.allclose(np.abs(np.sum(rot.from_matrix(rot.to_matrix(q)) * q, axis=-1)), 1.0)

@@ -116,45 +116,49 @@ def encode(motion: Motion) -> np.ndarray:
     g_rot, g_pos = motion.global_transforms()
     sk = motion.skeleton
     previous = _previous(g_pos)
-    return _encode_frames(sk, feature_layout(sk), motion.rotations, g_rot, g_pos, previous, motion.fps)
+    return _encode_frames(sk, feature_layout(sk), motion.rotations, g_rot[:, sk.pelvis], g_pos, previous,
+                          motion.fps)
 
 
 def _encode_frames(
     sk: Skeleton,
     lay: FeatureLayout,
     rotations: np.ndarray,
-    g_rot: np.ndarray,
+    pelvis_rot: np.ndarray,
     g_pos: np.ndarray,
     prev_g_pos: np.ndarray,
     fps: float,
 ) -> np.ndarray:
-    """Features of frames ``(..., J)`` given the global positions of each one's previous frame.
+    """Features of frames ``(..., J)`` (``pelvis_rot``: the pelvis's global rotation) given the
+    global positions of each one's previous frame.
 
     The one implementation behind :func:`encode` (leading axis: time) and :class:`StreamEncoder`
     (leading axis: performers).
     """
     joints = list(lay.joints)
+    n = len(joints)
     yaw = facing_yaw(g_pos, sk)
     inv_face = rot.conjugate(rot.from_yaw(yaw))  # (..., 4)
     ground = g_pos[..., sk.pelvis, :] * np.array([1.0, 0.0, 1.0])
     prev_ground = prev_g_pos[..., sk.pelvis, :] * np.array([1.0, 0.0, 1.0])
+    # Everything that turns into the facing frame, in one call: ground velocity, joint positions
+    # relative to the ground point, joint velocities.
+    world = np.concatenate([((ground - prev_ground) * fps)[..., None, :],
+                            g_pos[..., joints, :] - ground[..., None, :],
+                            (g_pos[..., joints, :] - prev_g_pos[..., joints, :]) * fps], axis=-2)
+    facing = rot.rotate(inv_face[..., None, :], world)
 
     out = np.empty(yaw.shape + (lay.size,), dtype=np.float32)
-    root_vel = rot.rotate(inv_face, (ground - prev_ground) * fps)
     yaw_rate = _wrap(yaw - facing_yaw(prev_g_pos, sk)) * fps
     out[..., lay.slices["root"]] = np.stack(
-        [root_vel[..., 0], root_vel[..., 2], g_pos[..., sk.pelvis, 1], yaw_rate], axis=-1
+        [facing[..., 0, 0], facing[..., 0, 2], g_pos[..., sk.pelvis, 1], yaw_rate], axis=-1
     )
 
     local = rotations[..., joints, :].copy()
-    local[..., 0, :] = rot.multiply(inv_face, g_rot[..., sk.pelvis, :])  # pelvis relative to facing
+    local[..., 0, :] = rot.multiply(inv_face, pelvis_rot)  # pelvis relative to facing
     out[..., lay.slices["rot6d"]] = rot.to_6d(local).reshape(yaw.shape + (-1,))
-
-    inv_face = inv_face[..., None, :]
-    rel = rot.rotate(inv_face, g_pos[..., joints, :] - ground[..., None, :])
-    out[..., lay.slices["pos"]] = rel.reshape(yaw.shape + (-1,))
-    vel = rot.rotate(inv_face, (g_pos[..., joints, :] - prev_g_pos[..., joints, :]) * fps)
-    out[..., lay.slices["vel"]] = vel.reshape(yaw.shape + (-1,))
+    out[..., lay.slices["pos"]] = facing[..., 1:1 + n, :].reshape(yaw.shape + (-1,))
+    out[..., lay.slices["vel"]] = facing[..., 1 + n:, :].reshape(yaw.shape + (-1,))
     out[..., lay.slices["contact"]] = _contacts(g_pos, prev_g_pos, sk, fps)
     return out
 
@@ -246,9 +250,9 @@ class StreamEncoder:
         sk = self.skeleton
         positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
         positions[:, sk.pelvis] = root_positions
-        g_rot, g_pos = forward_kinematics(sk, rotations, positions)
+        g_rot, g_pos = forward_kinematics(sk, rotations, positions, joints=[sk.pelvis])
         previous = np.where(self._fresh[:, None, None], g_pos, self._last)
-        out = _encode_frames(sk, self._layout, rotations, g_rot, g_pos, previous, self.fps)
+        out = _encode_frames(sk, self._layout, rotations, g_rot[:, 0], g_pos, previous, self.fps)
         self._last, self._fresh[:] = g_pos, False
         return out
 

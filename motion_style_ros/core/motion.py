@@ -88,9 +88,11 @@ _MATRIX_FK_POSES = 16
 
 
 def forward_kinematics(
-    skeleton: Skeleton, rotations: np.ndarray, positions: np.ndarray
+    skeleton: Skeleton, rotations: np.ndarray, positions: np.ndarray,
+    joints: list[int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones."""
+    """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones; with
+    ``joints``, the global rotations of those joints only (a streamed frame rarely needs them all)."""
     g_pos = np.empty(positions.shape, dtype=np.float64)
     g_pos[..., 0, :] = positions[..., 0, :]
     levels = _levels(skeleton.parents)  # one tree level at a time, all its joints in one call
@@ -98,19 +100,19 @@ def forward_kinematics(
         m = rot.to_matrix(rotations)
         g = np.empty_like(m)
         g[..., 0, :, :] = m[..., 0, :, :]
-        for joints, parents in levels:
-            g_pos[..., joints, :] = g_pos[..., parents, :] + (
-                g[..., parents, :, :] @ positions[..., joints, :, None])[..., 0]
-            g[..., joints, :, :] = g[..., parents, :, :] @ m[..., joints, :, :]
-        return rot.from_matrix(g), g_pos
+        for level, parents in levels:
+            g_pos[..., level, :] = g_pos[..., parents, :] + (
+                g[..., parents, :, :] @ positions[..., level, :, None])[..., 0]
+            g[..., level, :, :] = g[..., parents, :, :] @ m[..., level, :, :]
+        return rot.from_matrix(g if joints is None else g[..., joints, :, :]), g_pos
     g_rot = np.empty(rotations.shape, dtype=np.float64)
     g_rot[..., 0, :] = rotations[..., 0, :]
-    for joints, parents in levels:
-        g_rot[..., joints, :] = rot.multiply(g_rot[..., parents, :], rotations[..., joints, :])
-        g_pos[..., joints, :] = g_pos[..., parents, :] + rot.rotate(
-            g_rot[..., parents, :], positions[..., joints, :]
+    for level, parents in levels:
+        g_rot[..., level, :] = rot.multiply(g_rot[..., parents, :], rotations[..., level, :])
+        g_pos[..., level, :] = g_pos[..., parents, :] + rot.rotate(
+            g_rot[..., parents, :], positions[..., level, :]
         )
-    return g_rot, g_pos
+    return (g_rot if joints is None else g_rot[..., joints, :]), g_pos
 
 
 @functools.cache

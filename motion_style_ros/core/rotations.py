@@ -2,14 +2,13 @@
 
 Quaternions are ``(..., 4)`` arrays in ``(w, x, y, z)`` order (scalar first, as in ROS messages and
 BVH-tooling conventions); they rotate column vectors: ``v' = q * v * q^-1``. Every function
-broadcasts over leading axes so a whole clip ``(T, J, 4)`` is one call. Euler conversions delegate
-to SciPy, which handles every axis order and gimbal lock.
+broadcasts over leading axes so a whole clip ``(T, J, 4)`` is one call (SciPy's ``Rotation``, the
+reference the tests check against, costs more per call than a streamed frame affords).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 _EPS = 1e-12
 
@@ -33,8 +32,24 @@ def conjugate(q: np.ndarray) -> np.ndarray:
 inverse = conjugate
 
 
+# Up to this many quaternions in a call, matrix forms (a few numpy calls) beat the elementwise
+# ones (a few dozen calls, fewer operations): that is what one streamed frame costs.
+_SMALL = 256
+
+# Hamilton product as a matrix: a * b = (a[_LEFT] * _LEFT_SIGN) @ b.
+_LEFT = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+_LEFT_SIGN = np.array([[1.0, -1.0, -1.0, -1.0], [1.0, 1.0, -1.0, 1.0], [1.0, 1.0, 1.0, -1.0],
+                       [1.0, -1.0, 1.0, 1.0]])
+
+
+def _small(*arrays: np.ndarray) -> bool:
+    return max(x[..., 0].size for x in arrays) <= _SMALL
+
+
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product ``a * b`` (apply ``b`` first, then ``a``)."""
+    if _small(a, b):
+        return (a[..., _LEFT] * _LEFT_SIGN @ b[..., None])[..., 0]
     aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
     return np.stack(
@@ -50,6 +65,8 @@ def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
+    if _small(q, v):
+        return (to_matrix(q) @ v[..., None])[..., 0]
     w = q[..., :1]
     u = q[..., 1:]
     t = 2.0 * cross(u, v)
@@ -145,11 +162,27 @@ def from_euler(angles: np.ndarray, order: str, degrees: bool = False) -> np.ndar
 
 
 def to_euler(q: np.ndarray, order: str, degrees: bool = False) -> np.ndarray:
-    """Intrinsic Euler angles in ``order`` (inverse of :func:`from_euler`)."""
-    lead = q.shape[:-1]
-    flat = normalize(q.reshape(-1, 4))[:, [1, 2, 3, 0]]
-    angles = Rotation.from_quat(flat).as_euler(order.upper(), degrees=degrees)
-    return angles.reshape(lead + (3,))
+    """Intrinsic Euler angles in ``order`` (inverse of :func:`from_euler`), any of the six
+    Tait-Bryan orders BVH files use; the middle angle in [-90, 90] degrees.
+
+    Read off the rotation matrix (a few numpy calls: a streamed JointState frame converts 21
+    joints, where SciPy's per-call overhead cost more than the maths). At gimbal lock the third
+    angle is 0 and the first takes the whole turn, as SciPy does.
+    """
+    order = order.upper()
+    if sorted(order) != ["X", "Y", "Z"]:
+        raise ValueError(f"Euler order {order!r}: expected a permutation of XYZ")
+    i, j, k = ("XYZ".index(a) for a in order)
+    e = 1.0 if (j - i) % 3 == 1 else -1.0  # +1 for the cyclic orders XYZ, YZX, ZXY
+    m = to_matrix(q)
+    cos_b = np.hypot(m[..., i, i], m[..., i, j])
+    b = np.arctan2(e * m[..., i, k], cos_b)
+    locked = cos_b < 1e-7
+    a = np.where(locked, np.arctan2(e * m[..., k, j], m[..., j, j]),
+                 np.arctan2(-e * m[..., j, k], m[..., k, k]))
+    c = np.where(locked, 0.0, np.arctan2(-e * m[..., i, j], m[..., i, i]))
+    angles = np.stack([a, b, c], axis=-1)
+    return np.rad2deg(angles) if degrees else angles
 
 
 def from_axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
