@@ -174,26 +174,88 @@ class StyleERD(nn.Module):
         return self._decode(out, style, torch.ones(b, 1))
 
     def _decode(self, latent: torch.Tensor, style: torch.Tensor, alpha: torch.Tensor) -> torch.Tensor:
+        """Output frames of latent codes ``(B, T, latent)`` or ``(B, latent)`` (one step)."""
         condition = alpha * style + (1 - alpha) * self.neutral_onehot  # alpha = 0: neutral
-        condition = condition[:, None].expand(-1, latent.shape[1], -1)
+        if latent.dim() == 3:
+            condition = condition[:, None].expand(-1, latent.shape[1], -1)
         y = self.decoder(torch.cat([latent, condition], dim=-1)) * self.out_std + self.out_mean
-        d6 = orthonormal_6d(y[..., OUT_ROOT:].unflatten(-1, (self.cfg.n_joints, 6)))
-        return torch.cat([y[..., :OUT_ROOT], d6.flatten(-2)], dim=-1)
+        joints = self.cfg.n_joints
+        d6 = orthonormal_6d(y[..., OUT_ROOT:].reshape(-1, joints, 6)).reshape(y.shape[:-1] + (6 * joints,))
+        return torch.cat([y[..., :OUT_ROOT], d6], dim=-1)
 
 
 class StepGraph(nn.Module):
-    """One streaming step, the exported ONNX graph (see docs of the recurrent model card)."""
+    """One streaming step, the exported ONNX graph (see the recurrent model card).
+
+    The same maths as :class:`StyleERD` on one frame, written for a small graph: the stacks' LSTM
+    layers run as one batched matrix product per layer (stacks as the batch) instead of one LSTM
+    node per stack and layer, each wrapped in transposes. A step is then a few dozen ONNX nodes,
+    which is what a streamed frame pays for (per-node overhead, and code that falls out of the
+    CPU's caches between frames). The state keeps :class:`StyleERD`'s flat layout.
+    """
 
     def __init__(self, model: StyleERD) -> None:
         super().__init__()
         self.model = model
+        cfg, hidden = model.cfg, model.cfg.latent
+        layers = [lstm.num_layers for lstm in model.stacks]
+        offsets = np.cumsum([0] + [2 * n * hidden for n in layers])
+        self.layer_stacks: list[tuple[int, int]] = []  # per layer: the stacks that have it (a range)
+        read, order = [], []
+        for layer in range(max(layers)):
+            stacks = [k for k, n in enumerate(layers) if n > layer]
+            first, last = stacks[0], stacks[-1] + 1
+            assert stacks == list(range(first, last)), "stacks with a layer must be consecutive"
+            self.layer_stacks.append((first, last))
+            for part in (0, 1):  # h, c
+                index = np.stack([offsets[k] + part * layers[k] * hidden + layer * hidden + np.arange(hidden)
+                                  for k in stacks])
+                read.append(torch.from_numpy(index))
+                order.append(index.ravel())
+        self.read = read  # per (layer, h/c): state columns, (stacks, hidden)
+        self.register_buffer("unshuffle", torch.from_numpy(np.argsort(np.concatenate(order))),
+                             persistent=False)
+        for layer, (first, last) in enumerate(self.layer_stacks):
+            stacks = model.stacks[first:last]
+            w_ih = torch.stack([getattr(m, f"weight_ih_l{layer}") for m in stacks]).detach()
+            w_hh = torch.stack([getattr(m, f"weight_hh_l{layer}") for m in stacks]).detach()
+            bias = torch.stack([getattr(m, f"bias_ih_l{layer}") + getattr(m, f"bias_hh_l{layer}")
+                                for m in stacks]).detach()
+            if layer == 0:  # every stack reads the latent code: one product for all of them
+                self.register_buffer("w_in", w_ih.flatten(0, 1).T.contiguous(), persistent=False)
+            else:
+                self.register_buffer(f"w_in{layer}", w_ih.transpose(1, 2).contiguous(), persistent=False)
+            self.register_buffer(f"w_rec{layer}", w_hh.transpose(1, 2).contiguous(), persistent=False)
+            self.register_buffer(f"bias{layer}", bias[:, None], persistent=False)
 
     def forward(self, features: torch.Tensor, style: torch.Tensor, alpha: torch.Tensor,
                 state: torch.Tensor, reset: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        m, hidden = self.model, self.model.cfg.latent
         # where, not a blend: a reset must also clear a state holding garbage (NaN)
-        state = torch.where(reset > 0.5, self.model.initial_state(1), state)
-        output, state_out = self.model(features[:, None], style, alpha, state)
-        return output[:, 0], state_out
+        state = torch.where(reset > 0.5, m.initial_state(1), state)
+        z = m.encoder((features - m.in_mean) / m.in_std)  # (B, latent)
+        new, tops = [], []  # tops: (first stack, h) of the stacks whose last layer this is
+        for layer, (first, last) in enumerate(self.layer_stacks):
+            h = state[:, self.read[2 * layer]].transpose(0, 1)  # (stacks, B, hidden)
+            c = state[:, self.read[2 * layer + 1]].transpose(0, 1)
+            if layer == 0:
+                x = (z @ self.w_in).reshape(-1, last - first, 4 * hidden).transpose(0, 1)
+            else:  # a stack with this layer had the one below: a range of the layer below's
+                below_first = self.layer_stacks[layer - 1][0]
+                x = below[first - below_first:last - below_first] @ getattr(self, f"w_in{layer}")
+            gates = x + h @ getattr(self, f"w_rec{layer}") + getattr(self, f"bias{layer}")
+            i, f, g, o = gates.chunk(4, dim=-1)  # PyTorch's gate order
+            c = torch.sigmoid(f) * c + torch.sigmoid(i) * torch.tanh(g)
+            h = torch.sigmoid(o) * torch.tanh(c)
+            new += [h.transpose(0, 1).flatten(1), c.transpose(0, 1).flatten(1)]
+            ends = self.layer_stacks[layer + 1] if layer + 1 < len(self.layer_stacks) else (last, last)
+            tops += [(k, h[k - first:stop - first]) for k, stop in ((first, ends[0]), (ends[1], last))
+                     if stop > k]
+            below = h
+        top = torch.cat([h for _, h in sorted(tops, key=lambda t: t[0])])  # (stacks, B, hidden)
+        weights = (style.index_select(1, m.branch_columns) * alpha).T[..., None]  # (branches, B, 1)
+        latent = top[0] + (weights * top[1:]).sum(0)
+        return m._decode(latent, style, alpha), torch.cat(new, dim=1)[:, self.unshuffle]
 
 
 # --- critics (training only) -----------------------------------------------------------------------
