@@ -203,11 +203,11 @@ def between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), _EPS)
     v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _EPS)
     w = 1.0 + np.sum(u * v, axis=-1, keepdims=True)
-    xyz = np.cross(u, v)
+    xyz = cross(u, v)
     opposite = w[..., 0] < 1e-9
     if np.any(opposite):  # 180 degrees: turn about any axis orthogonal to u
         u_b = np.broadcast_to(u, xyz.shape)
-        ortho = np.cross(u_b, np.eye(3)[np.argmin(np.abs(u_b), axis=-1)])
+        ortho = cross(u_b, np.eye(3)[np.argmin(np.abs(u_b), axis=-1)])
         xyz = np.where(opposite[..., None], ortho, xyz)
     return normalize(np.concatenate([w, xyz], axis=-1))
 
