@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -43,22 +44,20 @@ def read_card(model: Path) -> dict:
 
 
 class OnnxModel:
-    """One inference session on the CPU with its input and output names."""
+    """One inference session on the CPU with its input and output names.
+
+    Models of the same file (and thread count) share one ORT session in a process: a node with
+    several performers then holds the weights once, and they stay in the CPU's caches between
+    performers (ORT's ``run`` may be called from any thread).
+    """
 
     def __init__(self, path: str | Path, threads: int = 1) -> None:
-        import onnxruntime as ort
-
         self.path = Path(path)
-        options = ort.SessionOptions()
-        # Sessions run beside ROS callbacks and other sessions: by default ORT would claim every core.
-        options.intra_op_num_threads = threads
-        options.inter_op_num_threads = 1
         try:
-            self.session = ort.InferenceSession(
-                str(self.path), options, providers=["CPUExecutionProvider"]
-            )
-        except Exception as exc:  # ORT raises its own unexported exception types
-            raise MotionStyleError(f"{self.path}: cannot load ONNX model ({exc})") from None
+            stat = self.path.stat()
+        except OSError as exc:
+            raise MotionStyleError(f"{self.path}: cannot load ONNX model ({exc.strerror})") from None
+        self.session = _session(str(self.path.resolve()), stat.st_mtime_ns, stat.st_size, threads)
         self.input_names = [i.name for i in self.session.get_inputs()]
         self.output_names = [o.name for o in self.session.get_outputs()]
 
@@ -68,6 +67,21 @@ class OnnxModel:
         if missing:
             raise MotionStyleError(f"{self.path.name}: missing inputs {', '.join(sorted(missing))}")
         return dict(zip(self.output_names, self.session.run(self.output_names, inputs)))
+
+
+@functools.lru_cache(maxsize=16)
+def _session(path: str, mtime_ns: int, size: int, threads: int):
+    """An ORT session per file version (a re-exported file gets a new one) and thread count."""
+    import onnxruntime as ort
+
+    options = ort.SessionOptions()
+    # Sessions run beside ROS callbacks and other sessions: by default ORT would claim every core.
+    options.intra_op_num_threads = threads
+    options.inter_op_num_threads = 1
+    try:
+        return ort.InferenceSession(path, options, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # ORT raises its own unexported exception types
+        raise MotionStyleError(f"{path}: cannot load ONNX model ({exc})") from None
 
 
 def record_metrics(model: Path, key: str, metrics: dict) -> Path:
