@@ -211,6 +211,37 @@ def test_120_hz_input_gives_120_hz_output(model, clips):
         type(walk).from_rotations(walk.skeleton, q30[:, 0], p30[:, 0], 30.0).global_positions())
 
 
+def test_a_phase_moves_the_model_frames_to_other_input_frames(model, clips):
+    """Sessions serving streams in step (one node, several performers) spread their model frames
+    over the input frames; the output stays as smooth as without the phase."""
+    fast = resample(clips[0][:90], 120.0)
+    stamps = np.arange(fast.n_frames) / 120.0
+    calls = {}
+    outputs = {}
+    for phase in (0.0, 1 / 120.0, 3 / 120.0):
+        session = RecurrentSession(model, input_fps=120.0, phase_seconds=phase)
+        run, ran = session.model.run, []
+        session.model.run = lambda _run=run, _ran=ran, **kw: (_ran.append(True), _run(**kw))[1]
+        ticks = []
+        q, p = [], []
+        for k in range(fast.n_frames):
+            before = len(ran)
+            out = session.step(fast.rotations[k], fast.positions[k, 1], stamps[k])
+            q.append(out[0])
+            p.append(out[1])
+            ticks += [k] * (len(ran) - before)
+        calls[phase] = ticks
+        outputs[phase] = type(fast).from_rotations(fast.skeleton, np.stack(q), np.stack(p), 120.0)
+    assert calls[0.0][:4] == [0, 4, 8, 12]
+    assert calls[1 / 120.0][:4] == [0, 1, 5, 9]  # one input frame later, after the first
+    assert calls[3 / 120.0][:4] == [0, 3, 7, 11]
+    smooth = largest_jump(outputs[0.0].global_positions())
+    for phase in (1 / 120.0, 3 / 120.0):
+        assert largest_jump(outputs[phase].global_positions()) < 1.5 * smooth
+    with pytest.raises(MotionStyleError, match="phase_seconds"):
+        RecurrentSession(model, phase_seconds=1 / 30.0)
+
+
 def test_gaps_and_restarts_reset_the_stream(model, clips):
     walk = clips[1]
     rotations, roots = frames(walk)

@@ -154,11 +154,14 @@ def message(stamp_ns, names, positions):
     return msg
 
 
-def offline(model, frames, controls=None):
+def offline(model, frames, controls=None, performer=0):
     """What a fresh session makes of ``frames``: per frame (JointState positions, rotations, root);
     ``controls[k](session)`` runs before frame k. The node's defaults: foot locking on, the root
-    pulled towards the input's with a 2 s time constant."""
-    session = RecurrentSession(model, 1, FPS, follow_seconds=2.0)
+    pulled towards the input's with a 2 s time constant, performer k's model frames k input frames
+    later than the first performer's (modulo the input frames per model frame)."""
+    spread = round(FPS / 30.0)
+    session = RecurrentSession(model, 1, FPS, follow_seconds=2.0,
+                               phase_seconds=(performer % spread) / FPS)
     out = []
     for k, (stamp_ns, positions) in enumerate(frames):
         if controls and k in controls:
@@ -247,10 +250,13 @@ def test_two_performers_in_one_node_are_independent(rig, recorded, model):
         rig.inputs["p2"].publish(message(fb[0], LAYOUT.names, fb[1]))
     rig.spin_until(lambda: len(rig.states["p1"]) >= len(a) and len(rig.states["p2"]) >= len(b),
                    "both performers' outputs")
-    for performer, frames in (("p1", a), ("p2", b)):
+    for k, (performer, frames) in enumerate((("p1", a), ("p2", b))):
         got = rig.states[performer]
         assert stamps(got).tolist() == [s for s, _ in frames]
-        assert difference(positions(got), [e for e, _, _ in offline(model, frames)]) < 1e-5
+        assert difference(positions(got), [e for e, _, _ in offline(model, frames, performer=k)]) < 1e-5
+    # p2's model frames come one input frame after p1's (so they are not run on the same one):
+    # its output differs from a session without that offset.
+    assert difference(positions(rig.states["p2"]), [e for e, _, _ in offline(model, b)]) > 1e-4
 
 
 def test_parameters_change_live_and_bad_values_are_rejected(rig, recorded, model):
@@ -338,7 +344,7 @@ def test_bad_input_is_dropped_and_counted_and_the_next_good_frame_is_stylized(ri
     assert stamps(got[:-1]).tolist() == [s for s, _ in sent]
     now = int(stamps(got[-1:])[0])
     assert before <= now <= after
-    expected = offline(model, sent + [(now, recorded[0][1])])
+    expected = offline(model, sent + [(now, recorded[0][1])], performer=2)
     assert difference(positions(got), [e for e, _, _ in expected]) < 1e-5
 
     counts = rig.status("p3", frames_in=len(sent) + len(bad) + 1)

@@ -142,10 +142,15 @@ class Stylizer(PlayerNode):
                                    "prefixes, e.g. ['alice', 'bob'] (or [''] for one performer)")
         self.backend = backend
         self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
-        sessions = [RecurrentSession(model, 1, input_fps or None, blend, threads,
-                                     follow_seconds=follow or None, foot_lock=foot_lock)
-                    for _ in prefixes]
-        session = sessions[0]
+        session = RecurrentSession(model, 1, input_fps or None, blend, threads,
+                                   follow_seconds=follow or None, foot_lock=foot_lock)
+        # Performers' model frames fall on different input frames (one in input_fps / model fps
+        # runs the model), so that streams in step do not all run it on the same one.
+        spread = max(1, round(session.input_fps / session.fps))
+        sessions = [session] + [
+            RecurrentSession(model, 1, input_fps or None, blend, threads, follow_seconds=follow or None,
+                             foot_lock=foot_lock, phase_seconds=(k % spread) / session.input_fps)
+            for k in range(1, len(prefixes))]
         self.styles = session.styles
         self.period_ns = round(1e9 / session.input_fps)
         self.settings = {

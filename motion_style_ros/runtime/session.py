@@ -56,8 +56,11 @@ class RecurrentSession:
 
     ``model``: a shipped model's file name or a path (the card beside it); ``input_fps``: the
     stream's nominal rate (default: the model's), which sets the output latency; ``threads``:
-    ONNX Runtime threads. Until :meth:`set_style`, every performer gets the model's neutral style
-    (its card's ``neutral_style``) at alpha 1.
+    ONNX Runtime threads; ``phase_seconds`` (in [0, 1 / fps)): how much later than the stream's
+    start the model's clock ticks, so that sessions serving several streams in one process run
+    their model frames on different input frames rather than all on the same one. Until
+    :meth:`set_style`, every performer gets the model's neutral style (its card's
+    ``neutral_style``) at alpha 1.
     """
 
     def __init__(
@@ -70,6 +73,7 @@ class RecurrentSession:
         gap_seconds: float = 0.5,
         follow_seconds: float | None = None,
         foot_lock: bool = True,
+        phase_seconds: float = 0.0,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -83,6 +87,9 @@ class RecurrentSession:
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
                            foot_lock)
         self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
+        if not (isinstance(phase_seconds, (int, float)) and 0.0 <= phase_seconds < 1.0 / self.fps):
+            raise MotionStyleError(f"phase_seconds must be in [0, {1.0 / self.fps:g}), got {phase_seconds!r}")
+        self._phase = float(phase_seconds)
         self.restart()
 
     def _setup_stream(self, card: dict, performers: int, input_fps: float | None, blend_seconds: float,
@@ -111,6 +118,7 @@ class RecurrentSession:
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
         self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
         self._fresh = np.ones(self.performers, dtype=bool)
+        self._phase = 0.0
 
     # --- controls ---------------------------------------------------------------------------
 
@@ -150,7 +158,9 @@ class RecurrentSession:
         if self._stamp is not None and not (0.0 <= stamp - self._stamp <= self.gap_seconds):
             self.restart()
         if self._stamp is None:
-            self._origin = stamp
+            # The first model frame takes the first input frame; with a phase, the second one
+            # comes phase_seconds later than it would.
+            self._origin = stamp + (self._phase - 1.0 / self.fps if self._phase else 0.0)
             self.reset()
         while (t := self._origin + self._ticks / self.fps) <= stamp + STAMP_TOLERANCE:
             if self._stamp is None or t >= stamp - STAMP_TOLERANCE:
