@@ -82,8 +82,9 @@ class Motion:
         return cls(skeleton, rotations, positions, fps)
 
 
-# Up to this many poses, forward kinematics runs on rotation matrices: fewer numpy calls (what a
-# streamed frame costs); above it, on quaternions (fewer operations per pose, faster on clips).
+# Up to this many poses, forward kinematics composes 4x4 transforms by pointer doubling: a handful
+# of numpy calls (what a streamed frame costs); above it, quaternions level by level (fewer
+# operations per pose, faster on clips).
 _MATRIX_FK_POSES = 16
 
 
@@ -93,26 +94,44 @@ def forward_kinematics(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones; with
     ``joints``, the global rotations of those joints only (a streamed frame rarely needs them all)."""
+    if rotations[..., 0, 0].size <= _MATRIX_FK_POSES:
+        # Each joint's transform relative to an ancestor that doubles its distance every round:
+        # T_j <- T_a(j) @ T_j, a(j) <- a(a(j)); joint J is the world (identity).
+        lead = rotations.shape[:-2]
+        t = np.zeros(lead + (rotations.shape[-2] + 1, 4, 4))
+        t[..., :-1, :3, :3] = rot.to_matrix(rotations)
+        t[..., :-1, :3, 3] = positions
+        t[..., -1, :, :] = np.eye(4)
+        t[..., :-1, 3, 3] = 1.0
+        for ancestors in _doubling(skeleton.parents):
+            t = t[..., ancestors, :, :] @ t
+        g_pos = t[..., :-1, :3, 3].copy()  # contiguous: what callers compute with next
+        g = t[..., :-1, :3, :3]
+        return rot.from_matrix(g if joints is None else g[..., joints, :, :]), g_pos
     g_pos = np.empty(positions.shape, dtype=np.float64)
     g_pos[..., 0, :] = positions[..., 0, :]
-    levels = _levels(skeleton.parents)  # one tree level at a time, all its joints in one call
-    if rotations[..., 0, 0].size <= _MATRIX_FK_POSES:
-        m = rot.to_matrix(rotations)
-        g = np.empty_like(m)
-        g[..., 0, :, :] = m[..., 0, :, :]
-        for level, parents in levels:
-            g_pos[..., level, :] = g_pos[..., parents, :] + (
-                g[..., parents, :, :] @ positions[..., level, :, None])[..., 0]
-            g[..., level, :, :] = g[..., parents, :, :] @ m[..., level, :, :]
-        return rot.from_matrix(g if joints is None else g[..., joints, :, :]), g_pos
     g_rot = np.empty(rotations.shape, dtype=np.float64)
     g_rot[..., 0, :] = rotations[..., 0, :]
-    for level, parents in levels:
+    for level, parents in _levels(skeleton.parents):  # a tree level at a time, in one call each
         g_rot[..., level, :] = rot.multiply(g_rot[..., parents, :], rotations[..., level, :])
         g_pos[..., level, :] = g_pos[..., parents, :] + rot.rotate(
             g_rot[..., parents, :], positions[..., level, :]
         )
     return (g_rot if joints is None else g_rot[..., joints, :]), g_pos
+
+
+@functools.cache
+def _doubling(parents: tuple[int, ...]) -> list[np.ndarray]:
+    """Per round of pointer doubling, every joint's current ancestor (the world is the extra last
+    index, its own ancestor); after the last round every joint's is the world. Depth d takes
+    ceil(log2(d + 1)) rounds."""
+    world = len(parents)
+    ancestor = np.array([world if p < 0 else p for p in parents] + [world])
+    rounds = []
+    while (ancestor != world).any():
+        rounds.append(ancestor)
+        ancestor = ancestor[ancestor]
+    return rounds
 
 
 @functools.cache
