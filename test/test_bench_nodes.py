@@ -26,7 +26,8 @@ def test_bench_nodes_measures_every_row(tmp_path, ros_env):
     header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["rate", "(Hz)"])
     rows = [line.split() for line in lines[header + 1:header + 3]]
     assert [r[:2] for r in rows] == [["60", "1"], ["60", "2"]]
-    for rate, performers, frames, p50, p99, worst, dropped, cpu, own in rows:
+    for rate, performers, frames, p50, p99, worst, dropped, node_p99, cpu, own in rows:
         assert int(frames) >= 10 * int(performers)  # about 60 per performer
         assert 0 < float(p50) <= float(p99) <= float(worst)
+        assert float(node_p99) > 0  # the node reported its own latency (NaN fails)
         assert 0 <= int(dropped) < int(frames) and float(cpu) > 0 and float(own) > 0

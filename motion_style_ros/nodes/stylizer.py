@@ -48,7 +48,7 @@ DYNAMIC = {"target_style": str, "alpha": float, "mix_style": str, "mix_weight": 
 TYPE_NAMES = {str: "string", float: "double", int: "integer", bool: "bool", list: "array",
               type(None): "nothing (not set)"}
 WARN_EVERY = 10.0  # s between two warnings of the same kind
-LATENCY_WINDOW = 1000  # frames the latency percentiles are taken over
+LATENCY_SECONDS = 5.0  # the latency percentiles are over the frames published in this last time
 TWO_PI = 2.0 * np.pi
 
 
@@ -80,7 +80,8 @@ class Performer:
         self.input = node.resolve_topic_name(self.topic("joint_states"))
         self.counts = dict.fromkeys(["frames_in", "frames_out", *(f"dropped_{r}" for r in DROP_REASONS)],
                                     0)
-        self.latencies: deque[int] = deque(maxlen=LATENCY_WINDOW)  # ns, DDS receipt -> published
+        # (publish time, latency from DDS receipt to publication), both ns
+        self.latencies: deque[tuple[int, int]] = deque()
         self.reported_drops = 0
         self.names: tuple[str, ...] = ()
         self.slots = np.zeros(0, dtype=np.intp)  # input index of each layout name
@@ -252,7 +253,8 @@ class Stylizer(PlayerNode):
         out[p.slots] = self.layout.encode(rotations, root)
         frame_id = self.settings["frame_id"] or msg.header.frame_id
         p.state_out.publish(joint_state(p.names, out, msg.header.stamp, frame_id))
-        p.latencies.append(time.time_ns() - info["received_timestamp"])
+        now = time.time_ns()
+        p.latencies.append((now, now - info["received_timestamp"]))
         p.counts["frames_out"] += 1
         self._add_point(p, stamp_ns, out, frame_id)
         if p.markers_out is not None:
@@ -357,7 +359,10 @@ class Stylizer(PlayerNode):
 
     def _status(self, p: Performer) -> DiagnosticStatus:
         dropped = p.dropped
-        ms = 1e-6 * np.array(p.latencies)
+        since = time.time_ns() - round(LATENCY_SECONDS * 1e9)
+        while p.latencies and p.latencies[0][0] < since:
+            p.latencies.popleft()
+        ms = 1e-6 * np.array([latency for _, latency in p.latencies])
         p50, p99 = (np.percentile(ms, [50, 99]) if len(ms) else (np.nan, np.nan))
         values = {**p.counts, "dropped": dropped, "latency_p50_ms": f"{p50:.3f}",
                   "latency_p99_ms": f"{p99:.3f}", "model": str(p.session.model.path),
