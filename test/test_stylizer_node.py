@@ -361,7 +361,8 @@ def test_bad_input_is_dropped_and_counted_and_the_next_good_frame_is_stylized(ri
 
 
 @pytest.mark.parametrize("params, expected", [
-    ({"backend": "stgcn"}, "parameter backend is 'stgcn'; allowed: recurrent"),
+    ({"backend": "lstm"}, "parameter backend is 'lstm'; allowed: recurrent, stgcn"),
+    ({"reference": "walk.bvh"}, "a reference clip needs backend stgcn"),
     ({"target_style": "sad"}, "unknown style 'sad'; this model knows: active"),
     ({"qos_reliability": "sometimes"}, "allowed: best_effort, reliable"),
 ])

@@ -31,20 +31,14 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from motion_style_ros.core.conform import conform_rolls
-    from motion_style_ros.core.retarget import retarget
-    from motion_style_ros.core.skeleton import canonical
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.io import bvh, render
-    from motion_style_ros.io.datasets import rotation_stats
-    from motion_style_ros.runtime.offline import stylizer
+    from motion_style_ros.runtime.offline import canonical_clip, stylizer
 
     if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
         raise MotionStyleError(f"{args.render}: --render must end in .png or .gif")
     stylize = stylizer(args.backend, args.model, args.alpha, args.threads)
-    source = bvh.read(args.input).to_motion().check_finite(args.input)
-    if source.skeleton.names != canonical().names:
-        source = conform_rolls(retarget(source, canonical()), rotation_stats())
+    source = canonical_clip(args.input)
     output = Path(args.output)
     outputs = []
     for style in args.style:

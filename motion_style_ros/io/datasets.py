@@ -258,18 +258,31 @@ def index_xia(root: Path | None = None) -> list[ClipInfo]:
 
 
 def _bandai_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Local rotations ``(T, 22, 4)`` and the Hips translation ``(T, 3)`` (m) of a Bandai file.
-
-    Raises unless the file really is the canonical skeleton at 30 fps. ``joint_Root`` is static in
-    almost every file, but four dataset-1 clips (short in-place cycles) carry their trajectory on it;
-    it is folded into Hips so that the canonical skeleton's static root loses nothing.
-    """
+    """Local rotations ``(T, 22, 4)`` and the Hips translation ``(T, 3)`` (m) of a Bandai file;
+    raises unless the file really is the canonical skeleton at 30 fps."""
     clip = bvh.read(path)
-    sk = canonical()
-    if clip.skeleton.names != sk.names or clip.skeleton.parents != sk.parents:
-        raise MotionStyleError(f"{path}: not the 22-joint Bandai Namco skeleton")
     if clip.fps != BANDAI_FPS:
         raise MotionStyleError(f"{path}: {clip.fps:g} fps; Bandai Namco clips are {BANDAI_FPS:g} fps")
+    return canonical_arrays(clip, path)
+
+
+def is_canonical(clip: bvh.BvhClip) -> bool:
+    """A BVH on the canonical skeleton (a Bandai Namco file, or this package's output)."""
+    sk = canonical()
+    return clip.skeleton.names == sk.names and clip.skeleton.parents == sk.parents
+
+
+def canonical_arrays(clip: bvh.BvhClip, path: Path | str) -> tuple[np.ndarray, np.ndarray]:
+    """Local rotations ``(T, 22, 4)`` and the Hips translation ``(T, 3)`` (m) of a canonical-skeleton
+    BVH in centimetres, at any rate.
+
+    ``joint_Root`` is static in almost every Bandai file, but four dataset-1 clips (short in-place
+    cycles) carry their trajectory on it; it is folded into Hips so that the canonical skeleton's
+    static root loses nothing.
+    """
+    sk = canonical()
+    if not is_canonical(clip):
+        raise MotionStyleError(f"{path}: not the 22-joint Bandai Namco skeleton")
     m = clip.to_motion(scale=0.01)
     error = np.abs(m.positions[:, 2:] - sk.offsets[2:]).max(axis=(0, 2))
     j = int(np.argmax(error))

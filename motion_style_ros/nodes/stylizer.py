@@ -34,17 +34,19 @@ from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import JointStateLayout, to_ros
 from motion_style_ros.nodes import PlayerNode, joint_state, run
+from motion_style_ros.runtime.offline import canonical_clip, default_model
 from motion_style_ros.runtime.session import RecurrentSession
+from motion_style_ros.runtime.windowed import WindowedSession
 
 NAME = "stylizer"
-BACKENDS = ("recurrent",)  # the windowed stgcn backend plugs in here through the same session interface
+BACKENDS = ("recurrent", "stgcn")  # Style-ERD frame by frame; ST-GCN windows blended by overlap-add
 RELIABILITY = {"best_effort": ReliabilityPolicy.BEST_EFFORT, "reliable": ReliabilityPolicy.RELIABLE}
 DROP_REASONS = ("mismatched_lengths", "non_finite", "bad_names", "duplicate_stamp", "out_of_order",
                 "invalid_frame")
 # Parameters that change live, with their types (checked by the node: rclpy's own message would
 # name the types by number).
 DYNAMIC = {"target_style": str, "alpha": float, "mix_style": str, "mix_weight": float,
-           "latent_seed": int, "frame_id": str}
+           "latent_seed": int, "reference": str, "frame_id": str}
 TYPE_NAMES = {str: "string", float: "double", int: "integer", bool: "bool", list: "array",
               type(None): "nothing (not set)"}
 WARN_EVERY = 10.0  # s between two warnings of the same kind
@@ -111,9 +113,15 @@ class Stylizer(PlayerNode):
         prefixes = self.param("performers", [""], "topic prefix of each performer (one session each): "
                               "performer N subscribes N/joint_states and publishes N/stylized/...; "
                               "'' = the node's namespace")
-        model = self.param("model", "style_erd.onnx", "stylizer model: a shipped model's file name "
-                           "(models/) or a path; its JSON model card lies beside it")
+        model = self.param("model", "", "stylizer model: a shipped model's file name (models/) or a "
+                           "path, its JSON model card beside it; '' = the backend's shipped model")
         backend = self.param("backend", "recurrent", f"stylizer backend: {', '.join(BACKENDS)}")
+        window = self.param("window", 0, "stgcn: frames per window, a multiple of 4; 0 = the model "
+                            "card's", 0, 1024)
+        hop = self.param("hop", 4, "stgcn: model frames between two windows", 1, 1024)
+        lookahead = self.param("lookahead", 16, "stgcn: model frames of the future each output "
+                               "frame waits for (latency lookahead / model fps); more is smoother",
+                               0, 1023)
         input_fps = self.param("input_fps", 0.0, "nominal input rate in Hz (0: the model's rate); "
                                "sets the output latency, 1/model_fps - 1/input_fps", 0.0, 1000.0)
         blend = self.param("blend_seconds", 0.3, "seconds over which a style/alpha/mix change blends "
@@ -143,15 +151,21 @@ class Stylizer(PlayerNode):
                                    "prefixes, e.g. ['alice', 'bob'] (or [''] for one performer)")
         self.backend = backend
         self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
-        session = RecurrentSession(model, 1, input_fps or None, blend, threads,
-                                   follow_seconds=follow or None, foot_lock=foot_lock)
-        # Performers' model frames fall on different input frames (one in input_fps / model fps
-        # runs the model), so that streams in step do not all run it on the same one.
-        spread = max(1, round(session.input_fps / session.fps))
-        sessions = [session] + [
-            RecurrentSession(model, 1, input_fps or None, blend, threads, follow_seconds=follow or None,
-                             foot_lock=foot_lock, phase_seconds=(k % spread) / session.input_fps)
-            for k in range(1, len(prefixes))]
+        model = model or default_model(backend)
+        common = dict(input_fps=input_fps or None, blend_seconds=blend, threads=threads,
+                      follow_seconds=follow or None, foot_lock=foot_lock)
+        if backend == "stgcn":
+            sessions = [WindowedSession(model, **common, window=window or None, hop=hop,
+                                        lookahead=lookahead) for _ in prefixes]
+        else:
+            session = RecurrentSession(model, **common)
+            # Performers' model frames fall on different input frames (one in input_fps / model
+            # fps runs the model), so that streams in step do not all run it on the same one.
+            spread = max(1, round(session.input_fps / session.fps))
+            sessions = [session] + [
+                RecurrentSession(model, **common, phase_seconds=(k % spread) / session.input_fps)
+                for k in range(1, len(prefixes))]
+        session = sessions[0]
         self.styles = session.styles
         self.period_ns = round(1e9 / session.input_fps)
         self.settings = {
@@ -164,9 +178,13 @@ class Stylizer(PlayerNode):
                                     "'' = none", read_only=False),
             "mix_weight": self.param("mix_weight", 0.0, "weight of mix_style: 0 = target_style "
                                      "alone, 1 = mix_style alone", 0.0, 1.0, read_only=False),
-            "latent_seed": self.param("latent_seed", 0, "seed of the style latent; used by the "
-                                      "windowed (stgcn) backend only, the recurrent one has no "
-                                      "latent space", 0, 2**31 - 1, read_only=False),
+            "latent_seed": self.param("latent_seed", 0, "stgcn: seed of the style codes (the same "
+                                      "seed, the same codes on every machine); the recurrent "
+                                      "backend has no latent space and ignores it", 0, 2**31 - 1,
+                                      read_only=False),
+            "reference": self.param("reference", "", "stgcn: a BVH clip whose style code (style "
+                                    "encoder) replaces the target style's: move like this "
+                                    "recording; '' = the latent seed's code", read_only=False),
             "frame_id": self.param("frame_id", "", "header.frame_id of the outputs; '' = the input's "
                                    "(markers: 'world')", read_only=False),
         }
@@ -203,6 +221,9 @@ class Stylizer(PlayerNode):
                 key == "mix_style" and value == ""):
             return (f"unknown style {value!r}; this model knows: {', '.join(self.styles)}"
                     + (" ('' = no mix)" if key == "mix_style" else ""))
+        if key == "reference" and value and self.backend != "stgcn":
+            return (f"a reference clip needs backend stgcn (its style encoder); this node runs "
+                    f"{self.backend}: '' is the only value allowed")
         return None
 
     def _on_set_parameters(self, parameters) -> SetParametersResult:
@@ -210,19 +231,35 @@ class Stylizer(PlayerNode):
         for key, value in changes.items():
             if reason := self._problem(key, value):
                 return SetParametersResult(successful=False, reason=reason)
+        try:
+            self._apply(changes)
+        except MotionStyleError as exc:  # a reference clip that cannot be read or used
+            return SetParametersResult(successful=False, reason=" ".join(str(exc).split()))
         self.settings.update(changes)
-        self._apply(changes)
         return SetParametersResult(successful=True)
 
     def _apply(self, changes: dict) -> None:
-        """Hand changed controls to every session; they blend in from the next frame."""
+        """Hand changed controls to every session; they blend in from the next frame. A reference
+        clip is read (and checked) before anything changes."""
+        settings = {**self.settings, **changes}
+        reference = None
+        if self.backend == "stgcn" and settings["reference"] and (
+                {"reference", "target_style"} & changes.keys()):
+            reference = canonical_clip(settings["reference"])
+            self.performers[0].session.reference_codes(reference)  # too short, NaN: rejected here
         for p in self.performers:
             if "target_style" in changes:
                 p.session.set_style(changes["target_style"])
             if "alpha" in changes:
                 p.session.set_alpha(changes["alpha"])
             if "mix_style" in changes or "mix_weight" in changes:
-                p.session.set_mix(self.settings["mix_style"] or None, self.settings["mix_weight"])
+                p.session.set_mix(settings["mix_style"] or None, settings["mix_weight"])
+            if self.backend != "stgcn":
+                continue
+            if "latent_seed" in changes or ("reference" in changes and not settings["reference"]):
+                p.session.set_seed(settings["latent_seed"])
+            if reference is not None:
+                p.session.set_reference(reference, settings["target_style"])
 
     # --- streaming ------------------------------------------------------------------------------
 
@@ -367,7 +404,8 @@ class Stylizer(PlayerNode):
         values = {**p.counts, "dropped": dropped, "latency_p50_ms": f"{p50:.3f}",
                   "latency_p99_ms": f"{p99:.3f}", "model": str(p.session.model.path),
                   "backend": self.backend, "input": p.input,
-                  **{k: self.settings[k] for k in ("target_style", "alpha", "mix_style", "mix_weight")}}
+                  **{k: self.settings[k] for k in ("target_style", "alpha", "mix_style", "mix_weight",
+                                              "latent_seed", "reference")}}
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if dropped > p.reported_drops else DiagnosticStatus.OK,
             name=f"{self.get_name()}: {p.input}",

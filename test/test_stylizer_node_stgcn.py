@@ -1,0 +1,142 @@
+"""The stylizer node with ``backend: stgcn`` as a real process over DDS.
+
+A random-weight ST-GCN model (the real interface) serves one performer with reliable QoS. The
+outputs are checked against an offline :class:`WindowedSession` fed the same frames and stamps;
+``latent_seed`` and ``reference`` change through the real ``~/set_parameters`` service.
+"""
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers import Listener, stamps, start_node, stop
+from sensor_msgs.msg import JointState
+
+from motion_style_ros.core.synthetic import synthetic_motion
+from motion_style_ros.io import bvh
+from motion_style_ros.io.joint_state import JointStateLayout
+from motion_style_ros.nodes.stylizer import stamp_seconds
+from motion_style_ros.runtime.offline import canonical_clip
+from motion_style_ros.runtime.windowed import WindowedSession
+
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+FPS = 30.0
+T0 = 1_700_000_000 * 10**9  # ns
+PERIOD = round(1e9 / FPS)
+LOOKAHEAD, HOP = 8, 4
+LAYOUT = JointStateLayout.canonical()
+RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+REFERENCE = "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk_elderly_001.bvh"
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    pytest.importorskip("torch")  # writing the stand-in model needs it; the node does not
+    from motion_style_ros.training.stgcn import export_random_model
+
+    path = tmp_path_factory.mktemp("stgcn") / "stgcn.onnx"
+    export_random_model(path, STYLES, seed=0)
+    return path
+
+
+@pytest.fixture(scope="module")
+def frames():
+    """A synthetic walk in the canonical layout as ``(stamp ns, positions)``."""
+    values = LAYOUT.encode_motion(synthetic_motion("walk", FPS, 12.0))
+    return [(T0 + k * PERIOD, v) for k, v in enumerate(values)]
+
+
+@pytest.fixture(scope="module")
+def node(model, ros_env, tmp_path_factory):
+    log = tmp_path_factory.mktemp("stylizer_stgcn") / "stylizer.log"
+    proc = start_node("stylizer", ros_env, log=log, backend="stgcn", model=model, input_fps=FPS,
+                      lookahead=LOOKAHEAD, hop=HOP, qos_reliability="reliable", qos_depth=1000)
+    listener = Listener("stgcn_test")
+    publisher = listener.node.create_publisher(JointState, "joint_states", RELIABLE)
+    got = listener.subscribe("stylized/joint_states", qos=RELIABLE)
+    client = listener.node.create_client(SetParameters, "/stylizer/set_parameters")
+    listener.spin_until(lambda: publisher.get_subscription_count() and
+                        listener.subscriptions["stylized/joint_states"].get_publisher_count(),
+                        "the stylizer", procs=[proc])
+
+    def send(batch):
+        expected = len(got) + len(batch)
+        for stamp_ns, positions in batch:
+            msg = JointState(name=LAYOUT.names, position=[float(v) for v in positions])
+            msg.header.stamp = Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+            publisher.publish(msg)
+        listener.spin_until(lambda: len(got) >= expected, f"{expected} stylized states", procs=[proc])
+
+    def set_parameters(**values):
+        request = SetParameters.Request(
+            parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
+        return listener.call(client, request, procs=[proc]).results
+
+    yield send, set_parameters, got, proc
+    listener.close()
+    stop(proc)
+    print(log.read_text())  # shown by pytest when a test fails
+
+
+def offline(model, frames, controls=None):
+    """What a fresh session with the node's settings makes of ``frames`` (JointState positions);
+    ``controls[k](session)`` runs before frame k."""
+    session = WindowedSession(model, 1, FPS, follow_seconds=2.0, lookahead=LOOKAHEAD, hop=HOP)
+    out = []
+    for k, (stamp_ns, positions) in enumerate(frames):
+        if controls and k in controls:
+            controls[k](session)
+        q, r = session.step(*LAYOUT.decode(LAYOUT.names, positions),
+                            stamp_seconds(Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)))
+        out.append(LAYOUT.encode(q, r))
+    return np.array(out)
+
+
+def difference(a, b):
+    """Largest difference of two position arrays, angles compared modulo 2 pi."""
+    d = np.asarray(a) - np.asarray(b)
+    d[..., LAYOUT.angular] = np.mod(d[..., LAYOUT.angular] + np.pi, 2 * np.pi) - np.pi
+    return float(np.abs(d).max())
+
+
+def test_frames_are_stylized_as_offline_and_the_seed_changes_live(node, model, frames):
+    send, set_parameters, got, _ = node
+    send(frames[:120])
+    assert stamps(got).tolist() == [s for s, _ in frames[:120]]
+    assert difference([m.position for m in got], offline(model, frames[:120])) < 1e-5
+
+    (result,) = set_parameters(latent_seed=7)
+    assert result.successful, result.reason
+    send(frames[120:240])
+    out = np.array([m.position for m in got])
+    seeded = offline(model, frames[:240], {120: lambda s: s.set_seed(7)})
+    assert difference(out, seeded) < 1e-5
+    assert difference(out[130:], offline(model, frames[:240])[130:]) > 1e-4  # the seed took effect
+
+
+def test_reference_clips_are_read_checked_and_used(node, model, frames, datasets, tmp_path):
+    send, set_parameters, got, proc = node
+    short = tmp_path / "short.bvh"
+    walk = synthetic_motion("walk", FPS, 0.5)
+    bvh.write(short, bvh.BvhClip.from_motion(walk, scale=100.0))
+    for path, reason in ((tmp_path / "missing.bvh", "cannot read"), (short, "too short")):
+        (result,) = set_parameters(reference=str(path))
+        assert not result.successful and reason in result.reason, result.reason
+    # (~/set_parameters applies its parameters one by one, each through the node's callback)
+    for change in ({"target_style": "elderly"}, {"reference": str(datasets / REFERENCE)}):
+        (result,) = set_parameters(**change)
+        assert result.successful, result.reason
+    send(frames[240:])  # the stream kept flowing through every change, good or bad
+    assert proc.poll() is None and len(got) == len(frames)
+    clip = canonical_clip(str(datasets / REFERENCE))
+
+    def reference(session):
+        session.set_style("elderly")
+        session.set_reference(clip, "elderly")
+
+    expected = offline(model, frames, {120: lambda s: s.set_seed(7), 240: reference})
+    out = np.array([m.position for m in got])
+    assert difference(out, expected) < 1e-5  # the rejected clips changed nothing
+    assert difference(out[250:], offline(model, frames, {120: lambda s: s.set_seed(7)})[250:]) > 1e-4
