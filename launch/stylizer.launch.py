@@ -23,10 +23,12 @@ PACKAGE = 'motion_style_ros'
 
 # Launch argument -> (stylizer parameter, how to read the argument's text, description).
 STYLIZER_ARGUMENTS = {
+    'backend': ('backend', str, 'recurrent (frame by frame) or stgcn (windows, lookahead)'),
     'model': ('model', str, 'ONNX model: a file name in models/ or a path'),
     'target_style': ('target_style', str, 'style to perform, one of the model card\'s styles'),
     'alpha': ('alpha', float, 'style intensity, 0 (the input) .. 1'),
-    'latent_seed': ('latent_seed', int, 'latent seed (variation within a style)'),
+    'latent_seed': ('latent_seed', int, 'stgcn: latent seed (variation within a style)'),
+    'reference': ('reference', str, 'stgcn: a BVH clip whose style to move in'),
     'performers': ('performers', yaml.safe_load,
                    'topic prefixes, one per performer, e.g. "[alice, bob]"'),
     'markers': ('publish_markers', yaml.safe_load,

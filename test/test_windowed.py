@@ -190,8 +190,11 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
         assert row["style_accuracy"] == 0.0  # the input is masculine, not elderly
     spread = windowed.diversity([walk[:48]], ["elderly", "active"], random_model, seeds=(0, 1))
     assert spread["between_seeds_m"] > 0 and spread["between_styles_m"] > 0
-    report = windowed.bench_report(walk[:40], random_model, hops=(1, 8), lookahead=8)
+    report, figures = windowed.bench_report(walk[:40], random_model, hops=(1, 8), lookahead=8)
     assert "one window, 8 performer(s)" in report and "hop 8:" in report
+    amortised = figures["per_frame_amortised_ms"]
+    assert amortised["hop 8"] == pytest.approx(amortised["hop 1"] / 8, rel=0.01)
+    assert set(figures["step_ms"]) == {"hop 1", "hop 8"}
 
 
 def test_reference_stylizer_takes_its_code_from_another_content(random_model, datasets):

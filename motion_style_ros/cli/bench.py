@@ -31,6 +31,25 @@ def add_parser(subparsers):
     recurrent.add_argument("--record", action="store_true",
                            help="also write the figures into the model card's metrics")
     recurrent.set_defaults(func=run_recurrent)
+    stgcn = targets.add_parser(
+        "stgcn", help="the windowed ST-GCN session",
+        description="Time one ST-GCN window on ONNX Runtime (1 and 8 performers) and its per-frame "
+                    "amortised cost at each hop, then the wall time of WindowedSession.step() "
+                    "(the node's code path) streaming a clip at each hop.",
+    )
+    stgcn.add_argument("--clip", default=None, metavar="CLIP.bvh",
+                       help="humanoid BVH to stream (default: a 10 s synthetic walk at 30 Hz)")
+    stgcn.add_argument("--hops", default="1,4,8", metavar="N,N,...",
+                       help="hops (model frames between windows) to time (default: 1,4,8)")
+    stgcn.add_argument("--lookahead", type=int, default=8,
+                       help="model frames each output waits for (default: 8)")
+    stgcn.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
+    stgcn.add_argument("--record", action="store_true",
+                       help="also write the figures into the model card's metrics")
+    stgcn.add_argument("--model", default="stgcn.onnx",
+                       help="ONNX generator with its card and companions beside it (default: the "
+                            "shipped stgcn.onnx)")
+    stgcn.set_defaults(func=run_stgcn)
     nodes = targets.add_parser(
         "nodes", help="the stylizer node over DDS, end to end",
         description="Start the stylizer node as its own process (reliable QoS) and stream synthetic "
@@ -46,10 +65,15 @@ def add_parser(subparsers):
                        help="performers at the highest rate, each on its own topics (default: 4)")
     nodes.add_argument("--seconds", type=float, default=10.0,
                        help="measured stream time per row in seconds (default: 10)")
+    nodes.add_argument("--backend", default="recurrent", choices=("recurrent", "stgcn"),
+                       help="the node's backend (default: recurrent)")
+    nodes.add_argument("--lookahead", type=int, default=8,
+                       help="stgcn: model frames each output waits for (default: 8)")
     nodes.set_defaults(func=run_nodes)
-    for target in (recurrent, nodes):
-        target.add_argument("--model", default=DEFAULT_MODEL,
-                            help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
+    recurrent.add_argument("--model", default=DEFAULT_MODEL,
+                           help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
+    nodes.add_argument("--model", default=None,
+                       help="ONNX model with its card beside it (default: the backend's shipped one)")
 
 
 def run_recurrent(args) -> int:
@@ -106,6 +130,31 @@ def run_recurrent(args) -> int:
                    "model_call_us": {k: {"p50": round(a, 1), "p99": round(b, 1)}
                                      for k, (a, b) in calls.items()}}
         print(f"recorded in {record_metrics(path, 'bench', figures)}")
+    return 0
+
+
+def run_stgcn(args) -> int:
+    import os
+    import shlex
+    import sys
+
+    from motion_style_ros.core.synthetic import synthetic_motion
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.evaluation.windowed import bench_report
+    from motion_style_ros.runtime.offline import canonical_clip
+    from motion_style_ros.runtime.onnx_model import model_path, record_metrics
+
+    try:
+        hops = tuple(int(h) for h in args.hops.split(","))
+    except ValueError:
+        raise MotionStyleError(f"--hops takes whole numbers separated by commas, got {args.hops!r}") from None
+    clip = canonical_clip(args.clip) if args.clip else synthetic_motion("walk", 30.0, 10.0)
+    report, figures = bench_report(clip, args.model, hops, args.lookahead, args.threads)
+    print(report)
+    if args.record:
+        figures = {"command": "motion-style " + shlex.join(sys.argv[1:]), "cpus": os.cpu_count(),
+                   "load_average": os.getloadavg()[0], **figures}
+        print(f"recorded in {record_metrics(model_path(args.model), 'bench', figures)}")
     return 0
 
 
@@ -255,8 +304,17 @@ def run_nodes(args) -> int:
         raise MotionStyleError(f"--rates takes numbers separated by commas, got {args.rates!r}") from None
     if min(rates) <= 0 or args.seconds <= 0 or args.performers < 1:
         raise MotionStyleError("--rates, --seconds and --performers must be positive")
-    path = _model(args.model).resolve()
-    _print_model(path, read_card(path))
+    from motion_style_ros.runtime.offline import default_model
+
+    path = _model(args.model or default_model(args.backend)).resolve()
+    card = read_card(path)
+    _print_model(path, card)
+    settings = {"backend": args.backend}
+    if args.backend == "stgcn":
+        settings["lookahead"] = args.lookahead
+        print(f"stgcn with lookahead {args.lookahead}: each output shows the motion of "
+              f"{1000 * args.lookahead / card['fps']:.0f} ms earlier (not in the latencies below, "
+              "which run from the input's stamp to the output's arrival)")
     rows = [(rate, 1) for rate in rates]
     if args.performers > 1:
         rows.append((max(rates), args.performers))
@@ -270,7 +328,7 @@ def run_nodes(args) -> int:
     with LiveGraph("motion_style_bench", logs) as graph:
         for rate, performers in rows:
             latency_ms, sent, node_p99, cpu, own = _stream_nodes(graph, path, rate, performers,
-                                                                 args.seconds)
+                                                                 args.seconds, settings)
             p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
             print(f"{rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} {worst:>10.2f} "
                   f"{sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} {own:>10.0f}")
@@ -300,7 +358,7 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
+def _stream_nodes(graph, model, rate: float, performers: int, seconds: float, settings: dict):
     """One row: a fresh stylizer for ``performers`` performers at ``rate`` Hz; returns the latency
     (ms) of every measured frame that came back, how many were sent, the node's own p99 (ms, its
     last diagnostics, worst performer), and the CPU use of the stylizer and of this process (% of
@@ -320,7 +378,7 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float):
     node = graph.node
     prefixes = [""] if performers == 1 else [f"performer{k}" for k in range(performers)]
     proc = graph.start("stylizer", model=str(model), performers=prefixes, input_fps=float(rate),
-                       qos_reliability="reliable", qos_depth=100)
+                       qos_reliability="reliable", qos_depth=100, **settings)
     reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     topics = [f"{p}/" if p else "" for p in prefixes]
     publishers = [node.create_publisher(JointState, f"{t}joint_states", reliable) for t in topics]

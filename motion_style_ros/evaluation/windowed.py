@@ -154,25 +154,32 @@ def diversity(sources: list[Motion], styles: list[str], model: str | Path = DEFA
 
 
 def bench_report(motion: Motion, model: str | Path = DEFAULT_MODEL, hops: tuple[int, ...] = (1, 4, 8),
-                 lookahead: int = 8, threads: int = 1) -> str:
-    """The lines ``motion-style bench stgcn`` prints: one window on ONNX Runtime (1 and 8
-    performers) and the per-frame amortised cost at each hop, then the wall time of a session's
-    ``step()`` streaming ``motion`` (a real clip, at its rate) at each hop with ``lookahead``."""
+                 lookahead: int = 8, threads: int = 1) -> tuple[str, dict]:
+    """What ``motion-style bench stgcn`` prints, and the figures in it: one window on ONNX Runtime
+    (1 and 8 performers) and the per-frame amortised cost at each hop, then the wall time of a
+    session's ``step()`` streaming ``motion`` (at its rate) at each hop with ``lookahead``."""
     path = model_path(str(model))
     card = read_card(path)
     lines = [(f"model: {path} ({card['window']}-frame windows, {card['fps']:g} fps; trained on: "
              f"{card.get('training', {}).get('data', 'unknown data')}); ONNX Runtime on {threads} thread(s)")]
+    figures: dict = {"lookahead": lookahead, "latency_ms": round(1000 * lookahead / card["fps"], 1),
+                     "clip_frames": motion.n_frames, "clip_fps": motion.fps}
     for performers in (1, 8):
         ms = window_times(path, performers, threads=threads)
         p50, p99 = np.percentile(ms, [50, 99])
         amortised = ", ".join(f"hop {h}: {p50 / h:.3f} ms" for h in hops)
         lines.append(f"one window, {performers} performer(s): p50 {p50:.2f} ms, p99 {p99:.2f} ms; "
                      f"per frame amortised {amortised}")
-    lines.append(f"step() per input frame, {motion.n_frames} frames of a real clip at {motion.fps:g} Hz, "
-                 f"lookahead {lookahead} ({1000 * lookahead / card['fps']:.0f} ms):")
+        figures[f"window_ms_{performers}_performers"] = {"p50": round(p50, 3), "p99": round(p99, 3)}
+        if performers == 1:
+            figures["per_frame_amortised_ms"] = {f"hop {h}": round(p50 / h, 3) for h in hops}
+    lines.append(f"step() per input frame, {motion.n_frames} frames at {motion.fps:g} Hz, "
+                 f"lookahead {lookahead} ({figures['latency_ms']:.0f} ms):")
+    figures["step_ms"] = {}
     for h in hops:
         session = WindowedSession(path, hop=h, lookahead=lookahead, threads=threads, input_fps=motion.fps)
         ms = step_times(session, motion, session.styles[0])
         p50, p99, worst = np.percentile(ms, [50, 99, 100])
         lines.append(f"  hop {h}: p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {worst:.2f} ms, mean {ms.mean():.2f} ms")
-    return "\n".join(lines)
+        figures["step_ms"][f"hop {h}"] = {"p50": round(p50, 3), "p99": round(p99, 3), "max": round(worst, 3)}
+    return "\n".join(lines), figures

@@ -119,7 +119,7 @@ class Stylizer(PlayerNode):
         window = self.param("window", 0, "stgcn: frames per window, a multiple of 4; 0 = the model "
                             "card's", 0, 1024)
         hop = self.param("hop", 4, "stgcn: model frames between two windows", 1, 1024)
-        lookahead = self.param("lookahead", 16, "stgcn: model frames of the future each output "
+        lookahead = self.param("lookahead", 8, "stgcn: model frames of the future each output "
                                "frame waits for (latency lookahead / model fps); more is smoother",
                                0, 1023)
         input_fps = self.param("input_fps", 0.0, "nominal input rate in Hz (0: the model's rate); "
