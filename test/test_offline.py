@@ -53,6 +53,32 @@ def test_stylize_errors_are_one_line(model, tmp_path):
     assert len(bad_file.stderr.strip().splitlines()) == 1
 
 
+def test_stylize_with_a_reference_clip_on_the_stgcn_backend(datasets, tmp_path):
+    """A Bandai take (canonical skeleton, centimetres) in; the style code from another take."""
+    pytest.importorskip("torch")  # for the stand-in model only
+    from motion_style_ros.training.stgcn import export_random_model
+
+    model = tmp_path / "stgcn.onnx"
+    export_random_model(model, ["active", "elderly", "exhausted", "feminine", "masculine", "normal",
+                                "youthful"], seed=0)
+    data = datasets / "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data"
+    source, reference = data / "dataset-2_walk_normal_001.bvh", data / "dataset-2_walk_elderly_001.bvh"
+    outputs = {}
+    for seed in (0, 1):
+        out = stylize_cli(source, "-o", tmp_path / f"ref{seed}.bvh", "--backend", "stgcn", "--model", model,
+                          "--reference", reference, "--seed", seed)
+        assert out.returncode == 0, out.stderr
+        assert "style code read as" in out.stdout
+        outputs[seed] = bvh.read(tmp_path / f"ref{seed}.bvh").to_motion(scale=0.01)
+    hips = outputs[0].global_positions()[:, 1]
+    assert 0.7 < np.median(hips[:, 1]) < 1.1  # metres in, centimetres out: a standing pelvis height
+    # the reference's code replaces the seed's for its style: the seed no longer matters
+    assert np.allclose(outputs[0].rotations, outputs[1].rotations)
+    recurrent = stylize_cli(source, "-o", tmp_path / "r.bvh", "--reference", reference)
+    assert recurrent.returncode == 2 and "need --backend stgcn" in recurrent.stderr
+    assert len(recurrent.stderr.strip().splitlines()) == 1
+
+
 def test_unseen_checks_catch_nan_and_flips():
     walk = synthetic_motion("walk", 30.0, 2.0)
     clean = unseen.check(walk, walk)

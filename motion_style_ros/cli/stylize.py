@@ -17,8 +17,13 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("input", metavar="IN.bvh", help="source clip")
     p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="stylized clip to write")
-    p.add_argument("--style", action="append", required=True,
+    p.add_argument("--style", action="append", default=None,
                    help="target style (repeat for several); see the model card's 'styles'")
+    p.add_argument("--reference", metavar="CLIP.bvh", default=None,
+                   help="stgcn backend: move like this clip (its style code from the style encoder; "
+                        "the target style is the one the encoder recognises, unless --style names it)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="stgcn backend: latent seed of the style codes (default: 0)")
     p.add_argument("--alpha", type=float, default=1.0, help="style strength in [0, 1] (default: 1)")
     p.add_argument("--backend", default="recurrent", help="stylizer backend (default: recurrent)")
     p.add_argument("--model", default=None, help="model file (default: the backend's shipped model)")
@@ -37,8 +42,23 @@ def run(args: argparse.Namespace) -> int:
 
     if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
         raise MotionStyleError(f"{args.render}: --render must end in .png or .gif")
-    stylize = stylizer(args.backend, args.model, args.alpha, args.threads)
+    if args.backend != "stgcn" and (args.reference or args.seed):
+        raise MotionStyleError(f"--reference and --seed need --backend stgcn (the {args.backend} "
+                               "backend has no style codes)")
+    if not args.style and not args.reference:
+        raise MotionStyleError("give a target --style (or, with --backend stgcn, a --reference clip)")
     source = canonical_clip(args.input)
+    if args.backend == "stgcn":
+        from motion_style_ros.runtime.offline import windowed
+
+        reference = canonical_clip(args.reference) if args.reference else None
+        stylize, recognised = windowed(args.model, args.alpha, args.threads, args.seed, reference,
+                                       (args.style or [None])[0])
+        if reference is not None:
+            print(f"{args.reference}: style code read as {recognised!r}")
+            args.style = args.style or [recognised]
+    else:
+        stylize = stylizer(args.backend, args.model, args.alpha, args.threads)
     output = Path(args.output)
     outputs = []
     for style in args.style:

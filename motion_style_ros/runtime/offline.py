@@ -16,14 +16,13 @@ if TYPE_CHECKING:  # the CLI imports this module to build its parser: keep it li
 Stylizer = Callable[["Motion", str], "Motion"]
 
 
-def _per_rate(session_class, model: str, alpha: float, threads: int) -> Stylizer:
-    """One streaming session per input frame rate, restarted for every clip."""
-    session_class(model, threads=threads)  # fail now, in one line, on a missing or bad model
-    sessions: dict[float, object] = {}
+def _per_rate(make: Callable[[float | None], object], alpha: float) -> Stylizer:
+    """One streaming session per input frame rate (``make(fps)``), restarted for every clip."""
+    sessions = {None: make(None)}  # fail now, in one line, on a missing or bad model
 
     def stylize(source: "Motion", target_style: str) -> "Motion":
         if source.fps not in sessions:
-            sessions[source.fps] = session_class(model, input_fps=source.fps, threads=threads)
+            sessions[source.fps] = make(source.fps)
         return sessions[source.fps].run(source, target_style, alpha)
 
     return stylize
@@ -59,14 +58,33 @@ def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1) ->
     """The recurrent (Style-ERD) session."""
     from motion_style_ros.runtime.session import RecurrentSession
 
-    return _per_rate(RecurrentSession, model or default_model("recurrent"), alpha, threads)
+    return _per_rate(lambda fps: RecurrentSession(model or default_model("recurrent"), input_fps=fps,
+                                                  threads=threads), alpha)
 
 
 def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
     """The windowed ST-GCN session: latent seed 0, the default window, hop and lookahead."""
+    return windowed(model, alpha, threads)[0]
+
+
+def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, seed: int = 0,
+             reference: "Motion | None" = None, style: str | None = None) -> tuple[Stylizer, str | None]:
+    """The windowed ST-GCN session with a latent seed, or with a reference clip's style code (read
+    by ``style``'s head, by default the style the encoder recognises); the stylizer, and the
+    reference's style."""
     from motion_style_ros.runtime.windowed import WindowedSession
 
-    return _per_rate(WindowedSession, model or default_model("stgcn"), alpha, threads)
+    recognised = []
+
+    def make(fps: float | None) -> WindowedSession:
+        session = WindowedSession(model or default_model("stgcn"), input_fps=fps, threads=threads,
+                                  latent_seed=seed)
+        if reference is not None:
+            recognised.append(session.set_reference(reference, style))
+        return session
+
+    stylize = _per_rate(make, alpha)
+    return stylize, recognised[0] if recognised else None
 
 
 STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent, "stgcn": stgcn}
