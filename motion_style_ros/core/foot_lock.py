@@ -38,6 +38,9 @@ class FootLock:
         self.skeleton = sk = skeleton or canonical()
         self.fps = float(fps)
         self._hip, self._knee, self._ankle = (np.array([sk.index(leg[k]) for leg in LEGS]) for k in range(3))
+        # the joints whose world rotations the IK needs: the hips' parents, then hip, knee, ankle
+        self._legs = [int(j) for joints in ([sk.parents[j] for j in self._hip], self._hip, self._knee,
+                                            self._ankle) for j in joints]
         self._height = np.array([CONTACT_HEIGHT[sk.names[j]] for j in self._ankle])
         self._fade = 1.0 / max(release_seconds * self.fps, 1.0)  # weight lost per frame
         self.max_stretch = max_stretch
@@ -71,7 +74,7 @@ class FootLock:
         sk = self.skeleton
         positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
         positions[:, sk.pelvis] = root_positions
-        g_rot, g_pos = forward_kinematics(sk, rotations, positions)
+        g_rot, g_pos = forward_kinematics(sk, rotations, positions, self._legs)
         hip, knee, ankle = g_pos[:, self._hip], g_pos[:, self._knee], g_pos[:, self._ankle]
         speed = np.linalg.norm(input_ankles - self._last, axis=-1) * self.fps  # NaN on a first frame
         self._last = input_ankles
@@ -95,9 +98,9 @@ class FootLock:
         # Locked: the ankle stays at its target. Released: the correction it had then fades out,
         # so the leg eases back onto the stylizer's swing rather than being held behind.
         goal = np.where(locked[..., None], self._target, ankle + self._weight[..., None] * self._offset)
-        g_upper, g_lower = self._two_bone(g_rot[:, self._hip], g_rot[:, self._knee], hip, knee, ankle, goal)
-        g_foot = g_rot[:, self._ankle]  # the foot keeps its own world orientation (heel-toe roll)
-        parent = g_rot[:, [sk.parents[j] for j in self._hip]]
+        parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
+        g_upper, g_lower = self._two_bone(g_upper, g_lower, hip, knee, ankle, goal)
+        # (the foot keeps its own world orientation: its heel-toe roll)
         out = rotations.copy()
         out[:, self._hip] = rot.multiply(rot.conjugate(parent), g_upper)
         out[:, self._knee] = rot.multiply(rot.conjugate(g_upper), g_lower)
