@@ -8,11 +8,13 @@ import time
 import numpy as np
 import pytest
 import rclpy
+from builtin_interfaces.msg import Time
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.cli.live import stop_process
+from motion_style_ros.nodes.stylizer import stamp_seconds
 
 TIMEOUT = 60.0  # generous bound for readiness on a loaded machine; never a timing assertion
 BEST_EFFORT = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -35,6 +37,34 @@ def start_node(name, env, log=None, **params):
 def stop(proc, timeout=20.0):
     """SIGINT (a clean shutdown), then kill if it hangs; the exit code."""
     return stop_process(proc, timeout)
+
+
+def message(stamp_ns, names, positions):
+    """A JointState stamped ``stamp_ns`` (nanoseconds)."""
+    msg = JointState(name=list(names), position=[float(v) for v in positions])
+    msg.header.stamp = Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    return msg
+
+
+def replay(session, layout, frames, controls=None):
+    """What ``session`` (fresh, as the node builds it) makes of ``(stamp ns, positions)`` frames,
+    stamps converted as the node converts them: per frame (JointState positions, rotations, root);
+    ``controls[k](session)`` runs before frame k."""
+    out = []
+    for k, (stamp_ns, positions) in enumerate(frames):
+        if controls and k in controls:
+            controls[k](session)
+        q, r = session.step(*layout.decode(layout.names, positions),
+                            stamp_seconds(Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)))
+        out.append((layout.encode(q, r), q, r))
+    return out
+
+
+def difference(a, b, layout):
+    """Largest difference of two position arrays, angles compared modulo 2 pi."""
+    d = np.asarray(a) - np.asarray(b)
+    d[..., layout.angular] = np.mod(d[..., layout.angular] + np.pi, 2 * np.pi) - np.pi
+    return float(np.abs(d).max())
 
 
 def stamps(messages):

@@ -10,12 +10,12 @@ import time
 
 import numpy as np
 import pytest
-from builtin_interfaces.msg import Time
+import ros_helpers
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from ros_helpers import TIMEOUT, Listener, stamps, start_node, stop
+from ros_helpers import TIMEOUT, Listener, message, replay, stamps, start_node, stop
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
@@ -25,7 +25,6 @@ from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.io import bags
 from motion_style_ros.io.joint_state import JointStateLayout, to_ros
 from motion_style_ros.nodes.bvh_player import load
-from motion_style_ros.nodes.stylizer import stamp_seconds
 from motion_style_ros.runtime.session import RecurrentSession
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
@@ -148,12 +147,6 @@ def rig(stylizer):
     return stylizer
 
 
-def message(stamp_ns, names, positions):
-    msg = JointState(name=list(names), position=[float(v) for v in positions])
-    msg.header.stamp = Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
-    return msg
-
-
 def offline(model, frames, controls=None, performer=0):
     """What a fresh session makes of ``frames``: per frame (JointState positions, rotations, root);
     ``controls[k](session)`` runs before frame k. The node's defaults: foot locking on, the root
@@ -162,14 +155,7 @@ def offline(model, frames, controls=None, performer=0):
     spread = round(FPS / 30.0)
     session = RecurrentSession(model, 1, FPS, follow_seconds=2.0,
                                phase_seconds=(performer % spread) / FPS)
-    out = []
-    for k, (stamp_ns, positions) in enumerate(frames):
-        if controls and k in controls:
-            controls[k](session)
-        q, r = session.step(*LAYOUT.decode(LAYOUT.names, positions),
-                            stamp_seconds(Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)))
-        out.append((LAYOUT.encode(q, r), q, r))
-    return out
+    return replay(session, LAYOUT, frames, controls)
 
 
 def positions(messages):
@@ -177,10 +163,7 @@ def positions(messages):
 
 
 def difference(a, b):
-    """Largest difference of two position arrays, angles compared modulo 2 pi."""
-    d = np.asarray(a) - np.asarray(b)
-    d[..., LAYOUT.angular] = np.mod(d[..., LAYOUT.angular] + np.pi, 2 * np.pi) - np.pi
-    return float(np.abs(d).max())
+    return ros_helpers.difference(a, b, LAYOUT)
 
 
 def check_trajectory_chunk(msg, names):

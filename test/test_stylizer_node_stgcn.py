@@ -7,17 +7,16 @@ outputs are checked against an offline :class:`WindowedSession` fed the same fra
 
 import numpy as np
 import pytest
-from builtin_interfaces.msg import Time
+import ros_helpers
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from ros_helpers import Listener, stamps, start_node, stop
+from ros_helpers import Listener, message, replay, stamps, start_node, stop
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.io import bvh
 from motion_style_ros.io.joint_state import JointStateLayout
-from motion_style_ros.nodes.stylizer import stamp_seconds
 from motion_style_ros.runtime.offline import canonical_clip
 from motion_style_ros.runtime.windowed import WindowedSession
 
@@ -64,9 +63,7 @@ def node(model, ros_env, tmp_path_factory):
     def send(batch):
         expected = len(got) + len(batch)
         for stamp_ns, positions in batch:
-            msg = JointState(name=LAYOUT.names, position=[float(v) for v in positions])
-            msg.header.stamp = Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
-            publisher.publish(msg)
+            publisher.publish(message(stamp_ns, LAYOUT.names, positions))
         listener.spin_until(lambda: len(got) >= expected, f"{expected} stylized states", procs=[proc])
 
     def set_parameters(**values):
@@ -84,21 +81,11 @@ def offline(model, frames, controls=None):
     """What a fresh session with the node's settings makes of ``frames`` (JointState positions);
     ``controls[k](session)`` runs before frame k."""
     session = WindowedSession(model, 1, FPS, follow_seconds=2.0, lookahead=LOOKAHEAD, hop=HOP)
-    out = []
-    for k, (stamp_ns, positions) in enumerate(frames):
-        if controls and k in controls:
-            controls[k](session)
-        q, r = session.step(*LAYOUT.decode(LAYOUT.names, positions),
-                            stamp_seconds(Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)))
-        out.append(LAYOUT.encode(q, r))
-    return np.array(out)
+    return np.array([e for e, _, _ in replay(session, LAYOUT, frames, controls)])
 
 
 def difference(a, b):
-    """Largest difference of two position arrays, angles compared modulo 2 pi."""
-    d = np.asarray(a) - np.asarray(b)
-    d[..., LAYOUT.angular] = np.mod(d[..., LAYOUT.angular] + np.pi, 2 * np.pi) - np.pi
-    return float(np.abs(d).max())
+    return ros_helpers.difference(a, b, LAYOUT)
 
 
 def test_frames_are_stylized_as_offline_and_the_seed_changes_live(node, model, frames):
