@@ -3,7 +3,7 @@
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.conform import CHAINS, conform_rolls
+from motion_style_ros.core.conform import CHAINS, conform, conform_rolls, planted_ankle_height
 from motion_style_ros.core.retarget import retarget
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.io import bvh, datasets
@@ -37,6 +37,19 @@ def test_a_bandai_clip_is_nearly_left_as_it_is(datasets):
     conformed = conform_rolls(clip, stats)
     # A clip of the training data itself turns by at most two 5-degree grid steps.
     assert np.degrees(rot.angle_between(conformed.rotations, clip.rotations)).max() < 10.1
+
+
+def test_grounding_puts_retargeted_cmu_ankles_at_the_training_data_height(datasets):
+    stats = datasets_module().rotation_stats()
+    assert 0.08 < stats["ankle_height"] < 0.15  # Bandai ankles rest about 12 cm up
+    raw = retarget(bvh.read(datasets / "cmu/data/07/07_01.bvh").to_motion()[1:], canonical())
+    grounded = conform(raw, stats)
+    assert planted_ankle_height(raw) < stats["ankle_height"] - 0.03  # the CMU feet sink in
+    assert abs(planted_ankle_height(grounded) - stats["ankle_height"]) < 1e-9
+    # The body moves by one vertical offset, no joint against another (joint_Root, the static
+    # origin above the pelvis, stays).
+    shift = (grounded.global_positions() - conform_rolls(raw, stats).global_positions())[:, 1:]
+    assert np.allclose(shift[..., [0, 2]], 0.0, atol=1e-9) and np.ptp(shift[..., 1]) < 1e-9
 
 
 def test_the_shipped_statistics_come_from_the_datasets(datasets):

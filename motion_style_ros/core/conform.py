@@ -12,6 +12,11 @@ constant angle (and its child's local rotation by the inverse) leaves every posi
 For each arm chain (Shoulder -> UpperArm -> LowerArm -> Hand) the constant rolls that make the
 clip's local rotations most typical of the training data (Gaussian 6D-rotation statistics per
 joint) are found together by dynamic programming over a grid of angles.
+
+Rigs also disagree on how high the ankle joint sits above the sole: retargeted CMU ankles rest
+about 6 cm lower than Bandai's, so the canonical feet sink into the floor and a stylizer takes the
+walk for shuffling. :func:`ground` moves the whole clip up or down so that its planted ankles rest
+at the training data's height.
 """
 
 from __future__ import annotations
@@ -27,11 +32,35 @@ CHAINS = tuple(tuple(f"{j}_{side}" for j in ("Shoulder", "UpperArm", "LowerArm",
 STD_FLOOR = 0.05  # 6D components that hardly vary in the training data still allow this much
 
 
+ANKLES = ("Foot_L", "Foot_R")
+PLANTED_PERCENTILE = 5.0  # a clip's planted-ankle height: this percentile of its ankle heights
+
+
 def statistics(motions: list[Motion]) -> dict[str, np.ndarray]:
-    """Per-joint mean and standard deviation of the 6D local rotations ``(J, 6)`` over clips."""
+    """Per-joint mean and standard deviation of the 6D local rotations ``(J, 6)`` over clips, and
+    the median planted-ankle height (m)."""
     d6 = np.concatenate([rot.to_6d(m.rotations) for m in motions])
     return {"names": np.array(motions[0].skeleton.names), "mean": d6.mean(axis=0),
-            "std": np.maximum(d6.std(axis=0), STD_FLOOR)}
+            "std": np.maximum(d6.std(axis=0), STD_FLOOR),
+            "ankle_height": np.median([planted_ankle_height(m) for m in motions])}
+
+
+def planted_ankle_height(motion: Motion) -> float:
+    """How high the ankles are when the feet are on the floor: a low percentile of their heights."""
+    ankles = [motion.skeleton.index(n) for n in ANKLES]
+    return float(np.percentile(motion.global_positions()[:, ankles, 1], PLANTED_PERCENTILE))
+
+
+def ground(motion: Motion, stats: dict[str, np.ndarray]) -> Motion:
+    """``motion`` moved vertically so that its planted ankles rest at ``stats["ankle_height"]``."""
+    positions = motion.positions.copy()
+    positions[:, motion.skeleton.pelvis, 1] += float(stats["ankle_height"]) - planted_ankle_height(motion)
+    return Motion(motion.skeleton, motion.rotations, positions, motion.fps)
+
+
+def conform(motion: Motion, stats: dict[str, np.ndarray]) -> Motion:
+    """A retargeted clip in the training data's conventions: arm rolls and ankle height."""
+    return ground(conform_rolls(motion, stats), stats)
 
 
 def _rolls(steps: int) -> np.ndarray:

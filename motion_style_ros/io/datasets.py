@@ -436,9 +436,11 @@ def rotation_stats_file() -> Path:
 
 
 def rotation_stats() -> dict[str, np.ndarray]:
-    """Per-joint 6D local-rotation mean and std of the Bandai dataset-2 training takes (shipped)."""
+    """Per-joint 6D local-rotation mean and std and the planted-ankle height of the Bandai dataset-2
+    training takes (shipped)."""
     data = json.loads(rotation_stats_file().read_text(encoding="utf-8"))
-    return {"names": np.array(data["names"]), "mean": np.array(data["mean"]), "std": np.array(data["std"])}
+    return {"names": np.array(data["names"]), "mean": np.array(data["mean"]), "std": np.array(data["std"]),
+            "ankle_height": float(data["ankle_height"])}
 
 
 def rotation_stats_json(progress: bool = True) -> str:
@@ -449,5 +451,6 @@ def rotation_stats_json(progress: bool = True) -> str:
              if info.dataset == "bandai-2" and info.split == "train"]
     stats = statistics(train)
     return json.dumps({"data": f"Bandai Namco Research Motion Dataset 2, {len(train)} train takes",
+                       "ankle_height": round(float(stats["ankle_height"]), 6),
                        "names": stats["names"].tolist(), "mean": stats["mean"].round(6).tolist(),
                        "std": stats["std"].round(6).tolist()}, indent=1) + "\n"
