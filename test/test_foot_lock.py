@@ -69,3 +69,21 @@ def test_reset_forgets_the_lock(walk):
     far = roots[10:11] + np.array([1.0, 0.0, 0.0])
     assert np.allclose(lock(walk.rotations[10:11], far, ankles[10:11] + [1.0, 0.0, 0.0]),
                        walk.rotations[10:11])
+
+
+def test_clearance_lifts_feet_the_input_lifts(walk):
+    # The walk with its root 5 cm lower: the feet skim the floor and sink into it. With the
+    # input's ankles as the guide, no ankle goes below the input's while the foot is in the air.
+    roots = walk.positions[:, walk.skeleton.pelvis] - np.array([0.0, 0.05, 0.0])
+    low = Motion.from_rotations(walk.skeleton, walk.rotations, roots, walk.fps)
+    lock = FootLock(1, walk.fps)
+    fixed = locked(low, lock, source=walk)
+    height = {name: m.global_positions()[:, lock.ankles, 1] for name, m in
+              (("input", walk), ("low", low), ("fixed", fixed))}
+    swing = height["input"] > 0.25  # well in the air
+    assert (height["low"][swing] < height["input"][swing] - 0.04).all()
+    assert np.allclose(height["fixed"][swing], height["input"][swing], atol=2e-3)
+    assert metrics.bone_length_error(fixed, walk.skeleton) < 1e-9
+    # Without it, feet in the air stay low (but for the fading release of a lock).
+    plain = locked(low, FootLock(1, walk.fps, clearance=False), source=walk)
+    assert np.mean(height["input"][swing] - plain.global_positions()[:, lock.ankles, 1][swing]) > 0.03

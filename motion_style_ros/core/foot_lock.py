@@ -9,6 +9,11 @@ bending in its own plane) so that the ankle stays there, and the foot keeps the 
 the stylizer gave it (its heel-toe roll); when contact ends (or the leg would have to stretch more than
 ``max_stretch``), the lock fades out over ``release_seconds``. Only the local rotations of the
 upper leg, lower leg and foot change; the root and every other joint are untouched.
+
+With ``clearance`` (the default), a foot the input lifts is also lifted in the output: the output's
+ankle is never lower than the input's, so a stylized foot cannot skim the floor while the
+performer's is in the air. On recordings the stylizers never saw (CMU walks), outputs otherwise
+brought their feet down early and slid them in at walking speed.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from motion_style_ros.core.skeleton import Skeleton, canonical
 
 LEGS = (("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R"))
 _EPS = 1e-9
+_NEAR = 1e-6  # m: a goal this close to the ankle leaves the leg as it is
 
 
 class FootLock:
@@ -34,7 +40,7 @@ class FootLock:
 
     def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None,
                  release_seconds: float = 0.3, max_stretch: float = 0.1,
-                 speed: float = 0.3) -> None:
+                 speed: float = 0.3, clearance: bool = True) -> None:
         self.skeleton = sk = skeleton or canonical()
         self.fps = float(fps)
         self._hip, self._knee, self._ankle = (np.array([sk.index(leg[k]) for leg in LEGS]) for k in range(3))
@@ -45,6 +51,7 @@ class FootLock:
         self._fade = 1.0 / max(release_seconds * self.fps, 1.0)  # weight lost per frame
         self.max_stretch = max_stretch
         self.speed = speed
+        self.clearance = clearance
         self._last = np.full((performers, 2, 3), np.nan)  # input ankle positions of the last frame
         self._target = np.zeros((performers, 2, 3))  # where a locked ankle stays
         self._offset = np.zeros((performers, 2, 3))  # target - ankle when the lock was released
@@ -92,19 +99,23 @@ class FootLock:
         self._offset[released] = (self._target - ankle)[released]
         self._locked = locked
         self._weight = np.where(locked, 1.0, np.maximum(self._weight - self._fade, 0.0))
-        if not self._weight.any():
-            return rotations.copy()
-
         # Locked: the ankle stays at its target. Released: the correction it had then fades out,
-        # so the leg eases back onto the stylizer's swing rather than being held behind.
+        # so the leg eases back onto the stylizer's swing rather than being held behind. Not
+        # locked: no lower than the input's ankle.
         goal = np.where(locked[..., None], self._target, ankle + self._weight[..., None] * self._offset)
+        if self.clearance:
+            goal[..., 1] = np.where(locked, goal[..., 1], np.maximum(goal[..., 1], input_ankles[..., 1]))
+        moved = np.linalg.norm(goal - ankle, axis=-1) > _NEAR
+        if not moved.any():
+            return rotations.copy()
         parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
         g_upper, g_lower = self._two_bone(g_upper, g_lower, hip, knee, ankle, goal)
         # (the foot keeps its own world orientation: its heel-toe roll)
         out = rotations.copy()
-        out[:, self._hip] = rot.multiply(rot.conjugate(parent), g_upper)
-        out[:, self._knee] = rot.multiply(rot.conjugate(g_upper), g_lower)
-        out[:, self._ankle] = rot.multiply(rot.conjugate(g_lower), g_foot)
+        for joints, local in ((self._hip, rot.multiply(rot.conjugate(parent), g_upper)),
+                              (self._knee, rot.multiply(rot.conjugate(g_upper), g_lower)),
+                              (self._ankle, rot.multiply(rot.conjugate(g_lower), g_foot))):
+            out[:, joints] = np.where(moved[..., None], local, out[:, joints])
         return out
 
     def _two_bone(self, g_upper, g_lower, hip, knee, ankle, goal):
