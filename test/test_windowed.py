@@ -188,6 +188,8 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
         assert row["jump_over_most_lookahead_max"] == pytest.approx(1.0, abs=1e-3)
         assert row["distance_from_most_lookahead_m"] < 1e-6
         assert row["style_accuracy"] == 0.0  # the input is masculine, not elderly
+    # (the foot lock holds the input's own slightly sliding planted feet: about a millimetre)
+    assert windowed.alpha_zero_error([(walk, "elderly")], identity_model)["joint_distance_m"] < 3e-3
     spread = windowed.diversity([walk[:48]], ["elderly", "active"], random_model, seeds=(0, 1))
     assert spread["between_seeds_m"] > 0 and spread["between_styles_m"] > 0
     report, figures = windowed.bench_report(walk[:40], random_model, hops=(1, 8), lookahead=8)
@@ -250,3 +252,15 @@ def test_trained_alpha_zero_reproduces_the_input_closely(walk):
                            - (walk.global_positions() - walk.root_positions[:, None]), axis=-1)
     assert local.mean() < 0.05  # metres, joints relative to the pelvis
 
+
+
+def test_control_pairs_take_one_take_per_cell_into_the_next_style():
+    from motion_style_ros.evaluation.windowed import control_pairs
+
+    cells = [(c, s, t) for c in ("walk", "run") for s in ("active", "elderly", "normal") for t in ("001", "002")]
+    clips = [(ClipInfo("bandai-2", None, f"{c}_{s}_{t}", c, s, t, "test"), f"{c}_{s}_{t}") for c, s, t in cells]
+    pairs = control_pairs(clips)
+    assert len(pairs) == 6
+    assert sorted(motion.rsplit("_", 1)[0] for motion, _ in pairs) == sorted(f"{c}_{s}" for c, s, _ in cells[::2])
+    following = {"active": "elderly", "elderly": "normal", "normal": "active"}
+    assert all(target == following[motion.split("_")[1]] for motion, target in pairs)

@@ -38,6 +38,11 @@ def add_parser(subparsers):
                    help="instead: stylize the CMU and Xia neutral clips (other rigs and studios, "
                         "retargeted) into every style and check for NaN, joint flips, foot skating "
                         "against the input's and bone lengths; writes unseen.json and pictures")
+    p.add_argument("--controls", action="store_true",
+                   help="instead (stgcn): the cost of each lookahead (0, 8, 16, 32), the "
+                        "diversity of latent seeds against styles, and how closely alpha 0 "
+                        "reproduces the input, on one test take per (content, style); writes "
+                        "controls.json")
     p.set_defaults(func=run)
 
 
@@ -53,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
     stylizers = {name: stylizer(name, args.model, args.alpha, args.threads) for name in names}
     if args.unseen:
         return run_unseen(args, stylizers)
+    if args.controls:
+        return run_controls(args)
     judges = Judge("style", args.threads), Judge("content", args.threads)
     clips = harness.held_out_clips(progress=not args.quiet)
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
@@ -109,6 +116,44 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
     print(f"wrote {path}")
     if args.record:
         _record(args, "unseen", {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})
+    return 0
+
+
+def run_controls(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.evaluation import harness, windowed
+
+    if args.stylizer != ["stgcn"]:
+        raise MotionStyleError("--controls measures the windowed stylizer's controls: give --stylizer stgcn")
+    model = args.model or windowed.DEFAULT_MODEL
+    pairs = windowed.control_pairs(harness.held_out_clips(progress=not args.quiet), args.seed)
+    sources = [source for source, _ in pairs[::len(pairs) // 4]][:4]
+    report = {
+        "lookahead_costs": {"pairs": f"{len(pairs)} test takes, one per (content, style), each into "
+                                     "the next style; hop 4 (lookahead 0: hop 1)",
+                            "rows": windowed.lookahead_costs(pairs, model)},
+        "diversity": {**windowed.diversity(sources, ["elderly", "youthful", "exhausted"], model),
+                      "meaning": "mean pelvis-relative joint distance between outputs of one source "
+                                 "under two latent seeds vs under two styles"},
+        "alpha_zero": {**windowed.alpha_zero_error(pairs, model),
+                       "meaning": "alpha 0 (the source's own style code) against the source: mean "
+                                  "pelvis-relative joint distance and local rotation angle"},
+    }
+    for row in report["lookahead_costs"]["rows"]:
+        print("lookahead " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items() if k != "lookahead")
+              + f" (lookahead {row['lookahead']})")
+    for key in ("diversity", "alpha_zero"):
+        print(f"{key}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report[key].items() if k != "meaning"))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "controls.json").write_text(json.dumps(report, indent=1) + "\n")
+    print(f"wrote {out / 'controls.json'}")
+    if args.record:
+        for key, metrics in report.items():
+            _record(args, key, metrics)
     return 0
 
 

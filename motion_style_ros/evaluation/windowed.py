@@ -153,6 +153,31 @@ def diversity(sources: list[Motion], styles: list[str], model: str | Path = DEFA
             "seeds": list(seeds), "styles": list(styles), "sources": len(sources)}
 
 
+def alpha_zero_error(sources: list[tuple[Motion, str]], model: str | Path = DEFAULT_MODEL) -> dict:
+    """How closely alpha 0 (each source's own style code, from the style encoder) reproduces the
+    sources: mean pelvis-relative joint distance (m) and mean local rotation angle (degrees)."""
+    from motion_style_ros.core import rotations as rot
+
+    session = WindowedSession(model)
+    outs = [session.run(source, style, alpha=0.0) for source, style in sources]
+    distance = np.mean([np.linalg.norm(_local(o) - _local(s), axis=-1).mean() for o, (s, _) in zip(outs, sources)])
+    angle = np.mean([np.degrees(rot.angle_between(o.rotations, s.rotations)).mean()
+                     for o, (s, _) in zip(outs, sources)])
+    return {"joint_distance_m": round(float(distance), 4), "rotation_deg": round(float(angle), 2),
+            "sources": len(sources)}
+
+
+def control_pairs(clips: list[Clip], seed: int = 0) -> list[tuple[Motion, str]]:
+    """One seeded test take per (content, style) cell, each with the next style in order."""
+    from motion_style_ros.evaluation.harness import make_pairs
+
+    motions = {info.name: (info, motion) for info, motion in clips}
+    styles = sorted({info.style for info, _ in clips})
+    takes = dict.fromkeys(pair.source.name for pair in make_pairs([i for i, _ in clips], 1, seed))
+    return [(motions[name][1], styles[(styles.index(motions[name][0].style) + 1) % len(styles)])
+            for name in takes]
+
+
 def bench_report(motion: Motion, model: str | Path = DEFAULT_MODEL, hops: tuple[int, ...] = (1, 4, 8),
                  lookahead: int = 8, threads: int = 1) -> tuple[str, dict]:
     """What ``motion-style bench stgcn`` prints, and the figures in it: one window on ONNX Runtime
