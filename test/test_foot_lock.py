@@ -87,3 +87,23 @@ def test_clearance_lifts_feet_the_input_lifts(walk):
     # Without it, feet in the air stay low (but for the fading release of a lock).
     plain = locked(low, FootLock(1, walk.fps, clearance=False), source=walk)
     assert np.mean(height["input"][swing] - plain.global_positions()[:, lock.ankles, 1][swing]) > 0.03
+
+
+def test_a_lock_given_up_locks_again_where_the_stylizers_foot_comes_to_rest(walk):
+    # The input stands on both feet throughout; the "stylized" output walks away. Each lock
+    # stretches and is given up, and locks again at the output's next footfall instead of staying
+    # off for the whole (endless) contact.
+    lock = FootLock(1, walk.fps)
+    roots = walk.positions[:, walk.skeleton.pelvis]
+    standing = np.broadcast_to(walk.global_positions()[0, lock.ankles] * [1.0, 0.0, 1.0] + [0.0, 0.1, 0.0],
+                               (walk.n_frames, 2, 3))
+    targets, locked = set(), 0
+    for t in range(walk.n_frames):
+        lock(walk.rotations[t:t + 1], roots[t:t + 1], standing[t:t + 1])
+        locked += lock._locked[0, 0]
+        if lock._locked[0, 0]:
+            targets.add(tuple(np.round(lock._target[0, 0], 3)))
+    travelled = np.linalg.norm(roots[-1, [0, 2]] - roots[0, [0, 2]])
+    steps = travelled / 1.4  # about one left footfall per 1.4 m of walking
+    assert len(targets) >= 0.5 * steps, (len(targets), steps)
+    assert locked > 0.3 * walk.n_frames

@@ -53,6 +53,7 @@ class FootLock:
         self.speed = speed
         self.clearance = clearance
         self._last = np.full((performers, 2, 3), np.nan)  # input ankle positions of the last frame
+        self._last_out = np.full((performers, 2, 3), np.nan)  # and the stylizer's
         self._target = np.zeros((performers, 2, 3))  # where a locked ankle stays
         self._offset = np.zeros((performers, 2, 3))  # target - ankle when the lock was released
         self._weight = np.zeros((performers, 2))  # 1 locked, fading to 0 after contact
@@ -64,6 +65,7 @@ class FootLock:
         """These performers' next frame starts afresh (no lock carried over a jump)."""
         which = slice(None) if which is None else which
         self._last[which] = np.nan
+        self._last_out[which] = np.nan
         self._weight[which] = 0.0
         self._locked[which] = False
         self._spent[which] = False
@@ -88,8 +90,11 @@ class FootLock:
         contact = (input_ankles[..., 1] < self._height) & (speed < self.speed)
 
         # A lock given up because the leg would stretch too far stays off until that contact ends
-        # (locking again at once would snap the ankle back to where the stylizer put it).
-        self._spent &= contact
+        # or the stylizer's own ankle comes to rest (it has taken a step of its own: lock it where
+        # it stands now; locking again at once would snap it back to where the stylizer put it).
+        out_speed = np.linalg.norm(ankle - self._last_out, axis=-1) * self.fps  # NaN on a first frame
+        self._last_out = ankle
+        self._spent &= contact & ~(out_speed < self.speed)
         start = contact & ~self._locked & ~self._spent
         self._target[start] = ankle[start]
         stretched = self._locked & (np.linalg.norm(ankle - self._target, axis=-1) > self.max_stretch)

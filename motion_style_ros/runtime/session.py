@@ -23,7 +23,9 @@ between calls:
   are pulled towards the input's with that time constant instead, which bounds the drift (the
   stylized avatar keeps up with its performer on average).
 - **Foot locking.** With ``foot_lock`` (the default), feet the input plants stay planted in the
-  output (:mod:`motion_style_ros.core.foot_lock`: causal two-bone leg IK on each model frame).
+  output and feet it lifts are no lower (:mod:`motion_style_ros.core.foot_lock`: causal two-bone
+  leg IK on each model frame), and a performer standing on both feet keeps the input's root
+  motion (:mod:`motion_style_ros.core.standing`), so the style does not walk them away.
 - **Controls.** Style, alpha and a second style with a mix weight change between any two
   frames and blend over ``blend_seconds`` (:mod:`motion_style_ros.runtime.controls`).
 - **Bad input.** A frame with the wrong shape or dtype, NaN/Inf or non-unit quaternions raises
@@ -42,6 +44,7 @@ from motion_style_ros.core.features import FEATURE_VERSION, StreamDecoder, Strea
 from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.skeleton import canonical
+from motion_style_ros.core.standing import Standing
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.controls import Controls
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
@@ -117,6 +120,7 @@ class RecurrentSession:
         self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
         self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
+        self._standing = Standing(self.performers, self.fps, self.skeleton) if foot_lock else None
         self._fresh = np.ones(self.performers, dtype=bool)
         self._phase = 0.0
 
@@ -217,6 +221,7 @@ class RecurrentSession:
             self._controls.snap(fresh)
             if self._foot_lock is not None:
                 self._foot_lock.reset(fresh)
+                self._standing.reset(fresh)
         style, alpha = self._controls.advance(1.0 / self.fps)
         out = self.model.run(
             features=features, style=style, alpha=alpha, state=self._state,
@@ -224,7 +229,8 @@ class RecurrentSession:
         )
         self._state = out["state_out"]
         self._fresh[:] = False
-        frame = self._decoder(out["output"])
+        output = out["output"] if self._standing is None else self._standing(out["output"], features)
+        frame = self._decoder(output)
         if self._foot_lock is not None:
             ankles = self._encoder.positions[:, self._foot_lock.ankles]
             frame = self._foot_lock(*frame, ankles), frame[1]

@@ -38,13 +38,13 @@ from motion_style_ros.core.foot_lock import LEGS
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
+from motion_style_ros.core.standing import ROOT_MOTION
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.controls import smoothstep, unit_interval
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.session import RecurrentSession, _check_card
 
 DEFAULT_MODEL = "stgcn.onnx"
-ROOT_MOTION = [0, 1, 3]  # the root block's velocity and yaw-rate columns
 
 
 def latent(seed: int, size: int) -> np.ndarray:
@@ -221,6 +221,7 @@ class WindowedSession(RecurrentSession):
             self._ankles[fresh] = self._ankles[fresh, -1:]
             if self._foot_lock is not None:
                 self._foot_lock.reset(fresh)
+                self._standing.reset(fresh)
             self._start[fresh] = n
         style, alpha = self._controls.advance(1.0 / self.fps)
         self._advance_codes(1.0 / self.fps)
@@ -233,6 +234,8 @@ class WindowedSession(RecurrentSession):
         # A performer's first frame is shown until its lookahead has come in, refined as windows
         # arrive, and stays where it started: its root does not move.
         frames[np.ix_(due == self._start, ROOT_MOTION)] = 0.0
+        if self._standing is not None:
+            frames = self._standing(frames, self._history[np.arange(self.performers), due - n - 1])
         self._fresh[:] = False
         self._n += 1
         frame = self._decoder(frames)
