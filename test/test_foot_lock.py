@@ -107,3 +107,30 @@ def test_a_lock_given_up_locks_again_where_the_stylizers_foot_comes_to_rest(walk
     steps = travelled / 1.4  # about one left footfall per 1.4 m of walking
     assert len(targets) >= 0.5 * steps, (len(targets), steps)
     assert locked > 0.3 * walk.n_frames
+
+
+def test_a_planted_foot_keeps_its_heading(walk):
+    # The output's feet pivot about the ankle (2 degrees a frame about the foot's own axis); while a
+    # foot is locked its toes point where they landed.
+    sk = walk.skeleton
+    ankles = [sk.index(n) for n in ("Foot_L", "Foot_R")]
+    spin = rot.from_yaw(np.radians(2.0) * np.arange(walk.n_frames))[:, None]
+    rotations = walk.rotations.copy()
+    rotations[:, ankles] = rot.multiply(rotations[:, ankles], spin)
+    pivoting = Motion.from_rotations(sk, rotations, walk.positions[:, sk.pelvis], walk.fps)
+    lock = FootLock(1, walk.fps)
+    roots, inputs = pivoting.positions[:, sk.pelvis], walk.global_positions()[:, lock.ankles]
+    toes = [sk.index(n) for n in ("Toes_L", "Toes_R")]
+    headings, held = [], []
+    for t in range(walk.n_frames):
+        out = lock(pivoting.rotations[t:t + 1], roots[t:t + 1], inputs[t:t + 1])
+        g = Motion.from_rotations(sk, out, roots[t:t + 1], walk.fps).global_positions()[0]
+        forward = g[toes] - g[ankles]
+        headings.append(np.arctan2(forward[:, 0], forward[:, 2]))
+        held.append(lock._locked[0].copy())
+    headings, held = np.array(headings), np.array(held)
+    both = held[1:] & held[:-1]
+    assert both.sum() > 0.2 * walk.n_frames
+    turn = np.abs(np.angle(np.exp(1j * np.diff(headings, axis=0))))
+    assert turn[both].max() < 1e-6
+    assert np.median(turn[~both]) > np.radians(1.0)  # the stylizer's pivot elsewhere

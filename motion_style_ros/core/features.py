@@ -106,7 +106,8 @@ def _previous(x: np.ndarray) -> np.ndarray:
     return np.concatenate([x[:1], x[:-1]])
 
 
-def _wrap(angle: np.ndarray) -> np.ndarray:
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles (rad) into [-pi, pi)."""
     return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
@@ -149,7 +150,7 @@ def _encode_frames(
     facing = rot.rotate(inv_face[..., None, :], world)
 
     out = np.empty(yaw.shape + (lay.size,), dtype=np.float32)
-    yaw_rate = _wrap(yaw - facing_yaw(prev_g_pos, sk)) * fps
+    yaw_rate = wrap_angle(yaw - facing_yaw(prev_g_pos, sk)) * fps
     out[..., lay.slices["root"]] = np.stack(
         [facing[..., 0, 0], facing[..., 0, 2], g_pos[..., sk.pelvis, 1], yaw_rate], axis=-1
     )
@@ -298,7 +299,7 @@ class StreamDecoder:
         go = ~self._fresh
         target = np.asarray(ground, dtype=np.float64)[go] * np.array([1.0, 0.0, 1.0])
         self._ground[go] += gain * (target - self._ground[go])
-        self._yaw[go] += gain * _wrap(np.asarray(yaw)[go] - self._yaw[go])
+        self._yaw[go] += gain * wrap_angle(np.asarray(yaw)[go] - self._yaw[go])
 
     def __call__(self, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Local rotations ``(P, J, 4)`` and pelvis positions ``(P, 3)`` of one frame of features

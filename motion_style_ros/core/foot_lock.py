@@ -5,8 +5,9 @@ tends to slide. This is the animator's fix, done one frame at a time (no lookahe
 stylizer: a foot is in contact while the *input*'s ankle is low and slow (real capture knows when
 a foot is planted; the stylized output, sliding, does not), and the output's ankle is held: on
 the frame contact starts, its position is recorded; while it lasts, hip and knee are turned (two-bone IK, knee
-bending in its own plane) so that the ankle stays there, and the foot keeps the world orientation
-the stylizer gave it (its heel-toe roll); when contact ends (or the leg would have to stretch more than
+bending in its own plane) so that the ankle stays there, and the foot keeps the heading it landed
+with (toes do not pivot about the planted ankle) and the pitch and roll the stylizer gives it (its
+heel-toe roll); when contact ends (or the leg would have to stretch more than
 ``max_stretch``), the lock fades out over ``release_seconds``. Only the local rotations of the
 upper leg, lower leg and foot change; the root and every other joint are untouched.
 
@@ -21,11 +22,12 @@ from __future__ import annotations
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.features import CONTACT_HEIGHT, Mask
+from motion_style_ros.core.features import CONTACT_HEIGHT, Mask, wrap_angle
 from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.core.skeleton import Skeleton, canonical
 
 LEGS = (("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R"))
+TOES = ("Toes_L", "Toes_R")
 _EPS = 1e-9
 _NEAR = 1e-6  # m: a goal this close to the ankle leaves the leg as it is
 
@@ -48,6 +50,7 @@ class FootLock:
         self._legs = [int(j) for joints in ([sk.parents[j] for j in self._hip], self._hip, self._knee,
                                             self._ankle) for j in joints]
         self._height = np.array([CONTACT_HEIGHT[sk.names[j]] for j in self._ankle])
+        self._toes = sk.offsets[[sk.index(n) for n in TOES]]  # the feet's forward vectors
         self._fade = 1.0 / max(release_seconds * self.fps, 1.0)  # weight lost per frame
         self.max_stretch = max_stretch
         self.speed = speed
@@ -56,6 +59,8 @@ class FootLock:
         self._last_out = np.full((performers, 2, 3), np.nan)  # and the stylizer's
         self._target = np.zeros((performers, 2, 3))  # where a locked ankle stays
         self._offset = np.zeros((performers, 2, 3))  # target - ankle when the lock was released
+        self._heading = np.zeros((performers, 2))  # a locked foot's heading (rad about +Y)
+        self._turn = np.zeros((performers, 2))  # its heading - the stylizer's when released
         self._weight = np.zeros((performers, 2))  # 1 locked, fading to 0 after contact
         self._locked = np.zeros((performers, 2), dtype=bool)
         self._spent = np.zeros((performers, 2), dtype=bool)
@@ -97,11 +102,16 @@ class FootLock:
         self._spent &= contact & ~(out_speed < self.speed)
         start = contact & ~self._locked & ~self._spent
         self._target[start] = ankle[start]
+        parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
+        toes = rot.rotate(g_foot, self._toes)
+        heading = np.arctan2(toes[..., 0], toes[..., 2])
+        self._heading[start] = heading[start]
         stretched = self._locked & (np.linalg.norm(ankle - self._target, axis=-1) > self.max_stretch)
         self._spent |= stretched
         locked = contact & ~self._spent
         released = self._locked & ~locked
         self._offset[released] = (self._target - ankle)[released]
+        self._turn[released] = wrap_angle(self._heading - heading)[released]
         self._locked = locked
         self._weight = np.where(locked, 1.0, np.maximum(self._weight - self._fade, 0.0))
         # Locked: the ankle stays at its target. Released: the correction it had then fades out,
@@ -110,12 +120,12 @@ class FootLock:
         goal = np.where(locked[..., None], self._target, ankle + self._weight[..., None] * self._offset)
         if self.clearance:
             goal[..., 1] = np.where(locked, goal[..., 1], np.maximum(goal[..., 1], input_ankles[..., 1]))
-        moved = np.linalg.norm(goal - ankle, axis=-1) > _NEAR
+        turn = np.where(locked, wrap_angle(self._heading - heading), self._weight * self._turn)
+        moved = (np.linalg.norm(goal - ankle, axis=-1) > _NEAR) | (np.abs(turn) > _NEAR)
         if not moved.any():
             return rotations.copy()
-        parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
         g_upper, g_lower = self._two_bone(g_upper, g_lower, hip, knee, ankle, goal)
-        # (the foot keeps its own world orientation: its heel-toe roll)
+        g_foot = rot.multiply(rot.from_yaw(turn), g_foot)
         out = rotations.copy()
         for joints, local in ((self._hip, rot.multiply(rot.conjugate(parent), g_upper)),
                               (self._knee, rot.multiply(rot.conjugate(g_upper), g_lower)),
