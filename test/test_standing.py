@@ -35,7 +35,7 @@ def test_a_performer_standing_still_keeps_the_inputs_root_motion():
     hold = int(0.5 * FPS)
     assert np.allclose(vx[:hold - 1], 1.0)  # not yet: a double support is not standing
     assert np.allclose(vx[hold + 10:], 0.1)  # eased over 0.3 s to the input's
-    assert np.abs(np.diff(vx)).max() <= 0.9 / (0.3 * FPS) + 1e-9  # no jump
+    assert np.abs(np.diff(vx)).max() <= 1.5 * 0.9 / (0.3 * FPS) + 1e-9  # no jump (smoothstep: slope 1.5 at most)
     assert ROOT_MOTION == [0, 1, 3]
 
 
@@ -48,4 +48,4 @@ def test_walking_keeps_the_stylizers_speed_and_stepping_off_eases_back():
     both = np.r_[np.ones(60), left[:60]]
     vx = run(frames(both, np.r_[np.ones(60), right[:60]]))
     assert np.isclose(vx[59], 0.1) and np.isclose(vx[-1], 1.0)
-    assert np.abs(np.diff(vx)).max() <= 0.9 / (0.3 * FPS) + 1e-9
+    assert np.abs(np.diff(vx)).max() <= 1.5 * 0.9 / (0.3 * FPS) + 1e-9

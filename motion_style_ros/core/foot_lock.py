@@ -4,12 +4,15 @@ A stylizer changes the legs and the root's speed independently, so a planted foo
 tends to slide. This is the animator's fix, done one frame at a time (no lookahead), after any
 stylizer: a foot is in contact while the *input*'s ankle is low and slow (real capture knows when
 a foot is planted; the stylized output, sliding, does not), and the output's ankle is held: on
-the frame contact starts, its position is recorded; while it lasts, hip and knee are turned (two-bone IK, knee
-bending in its own plane) so that the ankle stays there, and the foot keeps the heading it landed
-with (toes do not pivot about the planted ankle) and the pitch and roll the stylizer gives it (its
-heel-toe roll); when contact ends (or the leg would have to stretch more than
-``max_stretch``), the lock fades out over ``release_seconds``. Only the local rotations of the
-upper leg, lower leg and foot change; the root and every other joint are untouched.
+the frame contact starts, its position is recorded (the ankle glides on with the stylizer's motion
+for a few frames, less each frame, so that it comes to rest without a jolt); while it lasts, hip and
+knee are turned (two-bone IK, knee bending in its own plane) so that the ankle stays there, and the
+foot keeps the heading it landed with (toes do not pivot about the planted ankle) and the pitch and
+roll the stylizer gives it (its heel-toe roll). Where the stylizer's own ankle moves more than
+``max_stretch`` away, the held one is dragged after it on that leash: a style that walks on while
+the performer stands slides the foot only that far behind, rather than letting go and snapping the
+leg back. When contact ends, the correction fades out over ``release_seconds``. Only the local
+rotations of the upper leg, lower leg and foot change; the root and every other joint are untouched.
 
 With ``clearance`` (the default), a foot the input lifts is also lifted in the output: the output's
 ankle is never lower than the input's, so a stylized foot cannot skim the floor while the
@@ -22,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.core.features import CONTACT_HEIGHT, Mask, wrap_angle
 from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.core.skeleton import Skeleton, canonical
@@ -29,6 +33,7 @@ from motion_style_ros.core.skeleton import Skeleton, canonical
 LEGS = (("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R"))
 TOES = ("Toes_L", "Toes_R")
 _EPS = 1e-9
+GLIDE = 0.5  # a new lock follows this much of the stylizer's ankle motion, then its square, ...
 _NEAR = 1e-6  # m: a goal this close to the ankle leaves the leg as it is
 
 
@@ -41,7 +46,7 @@ class FootLock:
     """
 
     def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None,
-                 release_seconds: float = 0.3, max_stretch: float = 0.1,
+                 release_seconds: float = 0.4, max_stretch: float = 0.1,
                  speed: float = 0.3, clearance: bool = True) -> None:
         self.skeleton = sk = skeleton or canonical()
         self.fps = float(fps)
@@ -61,9 +66,9 @@ class FootLock:
         self._offset = np.zeros((performers, 2, 3))  # target - ankle when the lock was released
         self._heading = np.zeros((performers, 2))  # a locked foot's heading (rad about +Y)
         self._turn = np.zeros((performers, 2))  # its heading - the stylizer's when released
+        self._glide = np.zeros((performers, 2))  # how much of the stylizer's motion a lock follows
         self._weight = np.zeros((performers, 2))  # 1 locked, fading to 0 after contact
         self._locked = np.zeros((performers, 2), dtype=bool)
-        self._spent = np.zeros((performers, 2), dtype=bool)
         self._axis = np.zeros((performers, 2, 3))  # last good knee axis, for a straight leg
 
     def reset(self, which: Mask = None) -> None:
@@ -73,7 +78,6 @@ class FootLock:
         self._last_out[which] = np.nan
         self._weight[which] = 0.0
         self._locked[which] = False
-        self._spent[which] = False
 
     @property
     def ankles(self) -> np.ndarray:
@@ -94,22 +98,26 @@ class FootLock:
         self._last = input_ankles
         contact = (input_ankles[..., 1] < self._height) & (speed < self.speed)
 
-        # A lock given up because the leg would stretch too far stays off until that contact ends
-        # or the stylizer's own ankle comes to rest (it has taken a step of its own: lock it where
-        # it stands now; locking again at once would snap it back to where the stylizer put it).
-        out_speed = np.linalg.norm(ankle - self._last_out, axis=-1) * self.fps  # NaN on a first frame
+        step = ankle - self._last_out  # NaN on a first frame
         self._last_out = ankle
-        self._spent &= contact & ~(out_speed < self.speed)
-        start = contact & ~self._locked & ~self._spent
+        start = contact & ~self._locked
+        # A new lock lets the ankle glide on with the stylizer's motion, less each frame, so that it
+        # comes to rest without a jolt.
+        glide = self._locked & contact
+        self._target += np.where(glide[..., None], self._glide[..., None] * np.nan_to_num(step), 0.0)
+        self._glide = np.where(start, GLIDE, self._glide * GLIDE)
         self._target[start] = ankle[start]
         parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
         toes = rot.rotate(g_foot, self._toes)
         heading = np.arctan2(toes[..., 0], toes[..., 2])
         self._heading[start] = heading[start]
-        stretched = self._locked & (np.linalg.norm(ankle - self._target, axis=-1) > self.max_stretch)
-        self._spent |= stretched
-        locked = contact & ~self._spent
-        released = self._locked & ~locked
+        # the leash: a held ankle at most max_stretch from the stylizer's
+        away = ankle - self._target
+        reach = np.linalg.norm(away, axis=-1, keepdims=True)
+        self._target += np.where(self._locked[..., None] & (reach > self.max_stretch),
+                                 away * (1.0 - self.max_stretch / np.maximum(reach, _EPS)), 0.0)
+        locked = contact
+        released = self._locked & ~contact
         self._offset[released] = (self._target - ankle)[released]
         self._turn[released] = wrap_angle(self._heading - heading)[released]
         self._locked = locked
@@ -117,10 +125,11 @@ class FootLock:
         # Locked: the ankle stays at its target. Released: the correction it had then fades out,
         # so the leg eases back onto the stylizer's swing rather than being held behind. Not
         # locked: no lower than the input's ankle.
-        goal = np.where(locked[..., None], self._target, ankle + self._weight[..., None] * self._offset)
+        fade = smoothstep(self._weight)
+        goal = np.where(locked[..., None], self._target, ankle + fade[..., None] * self._offset)
         if self.clearance:
             goal[..., 1] = np.where(locked, goal[..., 1], np.maximum(goal[..., 1], input_ankles[..., 1]))
-        turn = np.where(locked, wrap_angle(self._heading - heading), self._weight * self._turn)
+        turn = np.where(locked, wrap_angle(self._heading - heading), fade * self._turn)
         moved = (np.linalg.norm(goal - ankle, axis=-1) > _NEAR) | (np.abs(turn) > _NEAR)
         if not moved.any():
             return rotations.copy()

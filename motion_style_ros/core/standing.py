@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.core.features import Mask, feature_layout
 from motion_style_ros.core.skeleton import Skeleton, canonical
 
@@ -52,6 +53,6 @@ class Standing:
         if not self._weight.any():
             return output
         out = np.array(output, dtype=np.float64)
-        w = self._weight[:, None]
+        w = smoothstep(self._weight)[:, None]
         out[:, ROOT_MOTION] = (1.0 - w) * out[:, ROOT_MOTION] + w * features[:, ROOT_MOTION]
         return out

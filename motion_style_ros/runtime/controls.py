@@ -10,13 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.errors import MotionStyleError
-
-
-def smoothstep(x: np.ndarray) -> np.ndarray:
-    """0 -> 1 with zero slope at both ends (no kink when a blend starts or ends)."""
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
 
 
 def unit_interval(value: float, what: str) -> float:

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.core.features import encode
 from motion_style_ros.core.foot_lock import LEGS
 from motion_style_ros.core.motion import Motion
@@ -40,7 +41,7 @@ from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
 from motion_style_ros.core.standing import ROOT_MOTION
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.runtime.controls import smoothstep, unit_interval
+from motion_style_ros.runtime.controls import unit_interval
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.session import RecurrentSession, _check_card
 
