@@ -38,6 +38,10 @@ def add_parser(subparsers):
                    help="instead: stylize the CMU and Xia neutral clips (other rigs and studios, "
                         "retargeted) into every style and check for NaN, joint flips, foot skating "
                         "against the input's and bone lengths; writes unseen.json and pictures")
+    p.add_argument("--reference-codes", action="store_true",
+                   help="stgcn: take each pair's style code from a test take of the target style "
+                        "and another content (through the style encoder) instead of a latent seed; "
+                        "--record writes it as eval_reference_codes")
     p.add_argument("--controls", action="store_true",
                    help="instead (stgcn): the cost of each lookahead (0, 8, 16, 32), the "
                         "diversity of latent seeds against styles, and how closely alpha 0 "
@@ -54,6 +58,10 @@ def run(args: argparse.Namespace) -> int:
     from motion_style_ros.runtime.offline import stylizer
 
     names = args.stylizer or []
+    if args.reference_codes and names != ["stgcn"]:
+        from motion_style_ros.errors import MotionStyleError
+
+        raise MotionStyleError("--reference-codes scores the windowed stylizer: give --stylizer stgcn")
     # Build the stylizers first: a missing model fails here in one line, before the slow part.
     stylizers = {name: stylizer(name, args.model, args.alpha, args.threads) for name in names}
     if args.unseen:
@@ -62,6 +70,11 @@ def run(args: argparse.Namespace) -> int:
         return run_controls(args)
     judges = Judge("style", args.threads), Judge("content", args.threads)
     clips = harness.held_out_clips(progress=not args.quiet)
+    if args.reference_codes:
+        from motion_style_ros.evaluation.windowed import DEFAULT_MODEL, ReferenceStylizer
+
+        stylizers = {"stgcn": ReferenceStylizer(clips, args.model or DEFAULT_MODEL, args.alpha, args.threads,
+                                                 args.seed)}
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
     stylizers.update(harness.baselines(clips, args.seed))
     settings = {"pairs_per_cell": args.pairs_per_cell, "seed": args.seed, "alpha": args.alpha}
@@ -74,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
         summary = {name: {**system["overall"], "fmd_per_style": {
                        s: v["fmd"] for s, v in system["per_style"].items()}}
                    for name, system in report["systems"].items()}
-        _record(args, "eval", {"settings": report["settings"], "systems": summary})
+        _record(args, "eval_reference_codes" if args.reference_codes else "eval",
+                {"settings": report["settings"], "systems": summary})
     for name, system in report["systems"].items():
         if system["skipped"]:
             print(f"{name}: {len(system['skipped'])} pairs skipped "
