@@ -3,7 +3,7 @@
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.conform import CHAINS, conform, conform_rolls, planted_ankle_height
+from motion_style_ros.core.conform import ANKLES, CHAINS, StreamGround, conform, conform_rolls, planted_ankle_height
 from motion_style_ros.core.retarget import retarget
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.io import bvh, datasets
@@ -50,6 +50,21 @@ def test_grounding_puts_retargeted_cmu_ankles_at_the_training_data_height(datase
     # origin above the pelvis, stays).
     shift = (grounded.global_positions() - conform_rolls(raw, stats).global_positions())[:, 1:]
     assert np.allclose(shift[..., [0, 2]], 0.0, atol=1e-9) and np.ptp(shift[..., 1]) < 1e-9
+
+
+def test_stream_grounding_finds_the_offline_offset_of_a_live_cmu_walk(datasets):
+    stats = datasets_module().rotation_stats()
+    raw = retarget(bvh.read(datasets / "cmu/data/07/07_01.bvh").to_motion()[1:], canonical())
+    ankles = raw.global_positions()[:, [raw.skeleton.index(n) for n in ANKLES]]
+    offline = planted_ankle_height(raw) - stats["ankle_height"]  # what ground() moves the clip by
+    offsets = {}
+    for lift in (0.0, 0.1):
+        ground = StreamGround(1, raw.fps, stats["ankle_height"])
+        ground.start(ankles[:1] + [0.0, lift, 0.0], np.array([True]))
+        offsets[lift] = np.array([ground.update(a[None] + [0.0, lift, 0.0])[0] for a in ankles])
+    # Within 1.5 cm of the clip's offset after a second; a floor 10 cm higher, 10 cm more.
+    assert np.abs(offsets[0.0][int(raw.fps):] - offline).max() < 0.015, offline
+    assert np.allclose(offsets[0.1], offsets[0.0] + 0.1)
 
 
 def test_the_shipped_statistics_come_from_the_datasets(datasets):

@@ -52,10 +52,10 @@ def largest_jump(positions):
 
 
 def test_stepping_equals_direct_onnx_runs(model, clips):
-    """Without foot locking, the session is encode -> the ONNX graph with its state carried ->
-    decode, nothing else."""
+    """Without foot locking and grounding, the session is encode -> the ONNX graph with its state
+    carried -> decode, nothing else."""
     walk = clips[0]
-    session = RecurrentSession(model, foot_lock=False)
+    session = RecurrentSession(model, foot_lock=False, ground=False)
     session.set_style("elderly")
     q, p = stream(session, *frames(walk))
 
@@ -241,6 +241,19 @@ def test_a_phase_moves_the_model_frames_to_other_input_frames(model, clips):
         assert largest_jump(outputs[phase].global_positions()) < 1.5 * smooth
     with pytest.raises(MotionStyleError, match="phase_seconds"):
         RecurrentSession(model, phase_seconds=1 / 30.0)
+
+
+def test_a_stream_on_a_higher_floor_comes_out_on_that_floor(model, clips):
+    """Grounding: the same walk 10 cm higher (another rig's ankles, another floor) is stylized the
+    same and stays 10 cm higher."""
+    walk = clips[0]
+    rotations, roots = frames(walk)
+    up = np.array([0.0, 0.1, 0.0])
+    q, p = stream(RecurrentSession(model), rotations, roots)
+    q_up, p_up = stream(RecurrentSession(model), rotations, roots + up)
+    assert np.abs(q_up - q).max() < 1e-6 and np.abs(p_up - up - p).max() < 1e-6
+    _, p_free = stream(RecurrentSession(model, ground=False), rotations, roots + up)
+    assert np.abs(p_free - up - p).max() > 0.01  # without it, the model sees another motion
 
 
 def test_gaps_and_restarts_reset_the_stream(model, clips):

@@ -16,7 +16,7 @@ joint) are found together by dynamic programming over a grid of angles.
 Rigs also disagree on how high the ankle joint sits above the sole: retargeted CMU ankles rest
 about 6 cm lower than Bandai's, so the canonical feet sink into the floor and a stylizer takes the
 walk for shuffling. :func:`ground` moves the whole clip up or down so that its planted ankles rest
-at the training data's height.
+at the training data's height; :class:`StreamGround` does the same causally for a live stream.
 """
 
 from __future__ import annotations
@@ -106,3 +106,42 @@ def conform_rolls(motion: Motion, stats: dict[str, np.ndarray], steps: int = 72,
             parent_roll = inverse[choice[k - 1]] if k else rot.identity()
             rotations[:, j] = rot.multiply(rot.multiply(parent_roll, rotations[:, j]), rolls[choice[k]])
     return Motion(sk, rotations, motion.positions, motion.fps)
+
+
+class StreamGround:
+    """:func:`ground` for ``performers`` live streams at ``fps``: how far each performer's planted
+    ankles rest above ``ankle_height`` (the training data's), so that a session can move the stream
+    down by that much before the stylizer and its output back up (the user's floor stays theirs).
+
+    A performer's first frame sets its offset from the lower ankle (:meth:`start`: a stream starts
+    with a foot on the floor); then it follows the height of the lower of the ankles that stand
+    still (slower than ``speed`` m/s): down within ``down_seconds``, up only over ``up_seconds``
+    (a still ankle may be rolling up onto the toes; the floor is the low envelope, as the offline
+    percentile takes it).
+    """
+
+    def __init__(self, performers: int, fps: float, ankle_height: float, down_seconds: float = 0.2,
+                 up_seconds: float = 3.0, speed: float = 0.25) -> None:
+        self.ankle_height = float(ankle_height)
+        self.speed = speed
+        self._fps = float(fps)
+        self._down, self._up = (1.0 - np.exp(-1.0 / (self._fps * s)) for s in (down_seconds, up_seconds))
+        self._last = np.full((performers, 2, 3), np.nan)
+        self.offset = np.zeros(performers)
+
+    def start(self, ankles: np.ndarray, which: np.ndarray) -> None:
+        """These performers start afresh with this frame's ankle world positions ``(P, 2, 3)``."""
+        self.offset[which] = ankles[which, :, 1].min(axis=-1) - self.ankle_height
+        self._last[which] = np.nan
+
+    def update(self, ankles: np.ndarray) -> np.ndarray:
+        """Follow one frame's ankle world positions ``(P, 2, 3)`` (the stream's own, not moved);
+        returns the offsets ``(P,)``."""
+        with np.errstate(invalid="ignore"):  # NaN speed on a first frame: not still
+            still = np.linalg.norm(ankles - self._last, axis=-1) * self._fps < self.speed
+        self._last = ankles
+        planted = still.any(axis=-1)
+        height = np.where(still, ankles[..., 1], np.inf).min(axis=-1) - self.ankle_height
+        error = np.where(planted, height, self.offset) - self.offset
+        self.offset = self.offset + np.where(error < 0.0, self._down, self._up) * error
+        return self.offset

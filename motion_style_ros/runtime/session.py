@@ -26,6 +26,12 @@ between calls:
   output and feet it lifts are no lower (:mod:`motion_style_ros.core.foot_lock`: causal two-bone
   leg IK on each model frame), and a performer standing on both feet keeps the input's root
   motion (:mod:`motion_style_ros.core.standing`), so the style does not walk them away.
+- **Grounding.** With ``ground`` (the default), each performer's stream is moved down by how far
+  its planted ankles rest above the training data's (:class:`~motion_style_ros.core.conform.StreamGround`:
+  set on its first frame from the lower ankle, then followed while an ankle stands still) before
+  the stylizer, and the output is moved back up: other rigs' ankle joints sit higher or lower
+  above the sole, and the stylizers and the foot contact handling read absolute heights. The
+  output keeps the input's floor.
 - **Controls.** Style, alpha and a second style with a mix weight change between any two
   frames and blend over ``blend_seconds`` (:mod:`motion_style_ros.runtime.controls`).
 - **Bad input.** A frame with the wrong shape or dtype, NaN/Inf or non-unit quaternions raises
@@ -40,15 +46,18 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.conform import ANKLES, StreamGround
 from motion_style_ros.core.features import FEATURE_VERSION, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
-from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.motion import Motion, forward_kinematics
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.core.standing import Standing
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io.datasets import rotation_stats
 from motion_style_ros.runtime.controls import Controls
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 
+UP = np.array([0.0, 1.0, 0.0])
 INPUTS = ("features", "style", "alpha", "state", "reset")
 QUATERNION_TOLERANCE = 0.1  # |norm - 1| above this is rejected, below it normalised
 STAMP_TOLERANCE = 1e-6  # s: a model frame this close to an input frame takes that frame as it is
@@ -61,8 +70,8 @@ class RecurrentSession:
     stream's nominal rate (default: the model's), which sets the output latency; ``threads``:
     ONNX Runtime threads; ``phase_seconds`` (in [0, 1 / fps)): how much later than the stream's
     start the model's clock ticks, so that sessions serving several streams in one process run
-    their model frames on different input frames rather than all on the same one. Until
-    :meth:`set_style`, every performer gets the model's neutral style (its card's
+    their model frames on different input frames rather than all on the same one; ``foot_lock``
+    and ``ground``: see the module docstring. Until :meth:`set_style`, every performer gets the model's neutral style (its card's
     ``neutral_style``) at alpha 1.
     """
 
@@ -77,6 +86,7 @@ class RecurrentSession:
         follow_seconds: float | None = None,
         foot_lock: bool = True,
         phase_seconds: float = 0.0,
+        ground: bool = True,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -88,7 +98,7 @@ class RecurrentSession:
                 f"{path}: not a recurrent stylizer (no inputs {', '.join(sorted(missing))})"
             )
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                           foot_lock)
+                           foot_lock, ground)
         self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
         if not (isinstance(phase_seconds, (int, float)) and 0.0 <= phase_seconds < 1.0 / self.fps):
             raise MotionStyleError(f"phase_seconds must be in [0, {1.0 / self.fps:g}), got {phase_seconds!r}")
@@ -96,7 +106,7 @@ class RecurrentSession:
         self.restart()
 
     def _setup_stream(self, card: dict, performers: int, input_fps: float | None, blend_seconds: float,
-                      gap_seconds: float, follow_seconds: float | None, foot_lock: bool,
+                      gap_seconds: float, follow_seconds: float | None, foot_lock: bool, ground: bool,
                       delay_frames: int = 0) -> None:
         """Everything of the stream that does not depend on the model: rates and latency (plus
         ``delay_frames`` model frames of the model's own), controls, feature encoder and decoder,
@@ -121,6 +131,9 @@ class RecurrentSession:
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
         self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
         self._standing = Standing(self.performers, self.fps, self.skeleton) if foot_lock else None
+        self._ground = (StreamGround(self.performers, self.fps, rotation_stats()["ankle_height"])
+                        if ground else None)
+        self._ground_ankles = [self.skeleton.index(n) for n in ANKLES]
         self._fresh = np.ones(self.performers, dtype=bool)
         self._phase = 0.0
 
@@ -212,10 +225,25 @@ class RecurrentSession:
         self._input: tuple[np.ndarray, np.ndarray] | None = None
         self._outputs: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last two model frames
 
+    def _grounded(self, q: np.ndarray, p: np.ndarray, fresh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Features of the frame moved down by each performer's ground offset, and the offsets as
+        lifts ``(P, 3)`` to add back to the output (see the module docstring)."""
+        if self._ground is None:
+            return self._encoder(q, p), np.zeros((self.performers, 3))
+        if fresh.any():
+            positions = np.broadcast_to(self.skeleton.offsets, q.shape[:-1] + (3,)).copy()
+            positions[:, self.skeleton.pelvis] = p
+            _, g_pos = forward_kinematics(self.skeleton, q, positions, joints=[])
+            self._ground.start(g_pos[:, self._ground_ankles], fresh)
+        lift = self._ground.offset[:, None] * UP
+        features = self._encoder(q, p - lift)
+        self._ground.update(self._encoder.positions[:, self._ground_ankles] + lift[:, None])
+        return features, lift
+
     def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
         """One model frame for all performers at stream time ``t``."""
-        features = self._encoder(q, p)
         fresh = self._fresh.copy()
+        features, lift = self._grounded(q, p, fresh)
         if fresh.any():
             self._decoder.start(*self._encoder.facing(), which=fresh)
             self._controls.snap(fresh)
@@ -236,7 +264,7 @@ class RecurrentSession:
             frame = self._foot_lock(*frame, ankles), frame[1]
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)
-        self._outputs = [*self._outputs[-1:], (t, *frame)]
+        self._outputs = [*self._outputs[-1:], (t, frame[0], frame[1] + lift)]
 
     def _output(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The model's output at stream time ``t``, between its last two frames (held outside)."""

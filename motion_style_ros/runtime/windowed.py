@@ -95,6 +95,7 @@ class WindowedSession(RecurrentSession):
         lookahead: int = 16,
         latent_seed: int = 0,
         foot_lock: bool = True,
+        ground: bool = True,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -112,7 +113,7 @@ class WindowedSession(RecurrentSession):
         self.mapping = OnnxModel(companions["mapping"], threads)
         self.style_encoder = OnnxModel(companions["style_encoder"], threads)
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                           foot_lock, delay_frames=self.lookahead)
+                           foot_lock, ground, delay_frames=self.lookahead)
         self._ankle_joints = [self.skeleton.index(leg[-1]) for leg in LEGS]
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
@@ -202,17 +203,20 @@ class WindowedSession(RecurrentSession):
         self._start = np.zeros(self.performers, dtype=int)  # each performer's first frame
         # the input's ankles of the frames in the overlap-add slots (for foot locking)
         self._ankles = np.zeros((self.performers, self.lookahead + 1, 2, 3))
+        self._lifts = np.zeros((self.performers, self.lookahead + 1, 3))  # and their ground lifts
 
     def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
         """One model frame for all performers at stream time ``t``; emits frame ``t - lookahead``."""
         n, lookahead = self._n, self.lookahead
-        features = self._encoder(q, p)
         fresh = self._fresh.copy()
+        features, lift = self._grounded(q, p, fresh)
         self._history[:, :-1] = self._history[:, 1:]
         self._history[:, -1] = features
         self._ola.shift()
         self._ankles = np.roll(self._ankles, -1, axis=1)
         self._ankles[:, -1] = self._encoder.positions[:, self._ankle_joints]
+        self._lifts = np.roll(self._lifts, -1, axis=1)
+        self._lifts[:, -1] = lift
         if fresh.any():
             self._decoder.start(*self._encoder.facing(), which=fresh)
             self._controls.snap(fresh)
@@ -220,6 +224,7 @@ class WindowedSession(RecurrentSession):
             self._history[fresh] = features[fresh][:, None]
             self._ola.clear(fresh)
             self._ankles[fresh] = self._ankles[fresh, -1:]
+            self._lifts[fresh] = self._lifts[fresh, -1:]
             if self._foot_lock is not None:
                 self._foot_lock.reset(fresh)
                 self._standing.reset(fresh)
@@ -245,7 +250,8 @@ class WindowedSession(RecurrentSession):
             frame = self._foot_lock(*frame, ankles), frame[1]
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)
-        self._outputs = [*self._outputs[-1:], (t - lookahead / self.fps, *frame)]
+        lift = self._lifts[np.arange(self.performers), slot]
+        self._outputs = [*self._outputs[-1:], (t - lookahead / self.fps, frame[0], frame[1] + lift)]
 
     # --- codes --------------------------------------------------------------------------------
 
