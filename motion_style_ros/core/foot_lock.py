@@ -116,20 +116,19 @@ class FootLock:
         reach = np.linalg.norm(away, axis=-1, keepdims=True)
         self._target += np.where(self._locked[..., None] & (reach > self.max_stretch),
                                  away * (1.0 - self.max_stretch / np.maximum(reach, _EPS)), 0.0)
-        locked = contact
         released = self._locked & ~contact
         self._offset[released] = (self._target - ankle)[released]
         self._turn[released] = wrap_angle(self._heading - heading)[released]
-        self._locked = locked
-        self._weight = np.where(locked, 1.0, np.maximum(self._weight - self._fade, 0.0))
+        self._locked = contact
+        self._weight = np.where(contact, 1.0, np.maximum(self._weight - self._fade, 0.0))
         # Locked: the ankle stays at its target. Released: the correction it had then fades out,
         # so the leg eases back onto the stylizer's swing rather than being held behind. Not
         # locked: no lower than the input's ankle.
         fade = smoothstep(self._weight)
-        goal = np.where(locked[..., None], self._target, ankle + fade[..., None] * self._offset)
+        goal = np.where(contact[..., None], self._target, ankle + fade[..., None] * self._offset)
         if self.clearance:
-            goal[..., 1] = np.where(locked, goal[..., 1], np.maximum(goal[..., 1], input_ankles[..., 1]))
-        turn = np.where(locked, wrap_angle(self._heading - heading), fade * self._turn)
+            goal[..., 1] = np.where(contact, goal[..., 1], np.maximum(goal[..., 1], input_ankles[..., 1]))
+        turn = np.where(contact, wrap_angle(self._heading - heading), fade * self._turn)
         moved = (np.linalg.norm(goal - ankle, axis=-1) > _NEAR) | (np.abs(turn) > _NEAR)
         if not moved.any():
             return rotations.copy()

@@ -2,7 +2,7 @@
 
 A stylizer outputs the root's velocity and yaw rate, so a style can walk slower or faster than
 its performer. On a performer who stands still (boxing, waving, talking), the stylizers tend to
-add drift and small steps of their own; the foot lock then has to give up, and the feet slide.
+add drift and small steps of their own, which the foot lock can only drag the planted feet after.
 So, streamed frame by frame: once both of the input's feet have been in contact (the features'
 ``contact`` block) for ``hold_seconds``, the output's root velocity and yaw rate ease over
 ``ease_seconds`` into the input's own, and ease back when a foot leaves the ground. Walking never
