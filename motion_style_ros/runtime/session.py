@@ -47,7 +47,7 @@ import numpy as np
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.conform import ANKLES, StreamGround
-from motion_style_ros.core.features import FEATURE_VERSION, StreamDecoder, StreamEncoder
+from motion_style_ros.core.features import FEATURE_VERSION, UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.motion import Motion, forward_kinematics
 from motion_style_ros.core.skeleton import canonical
@@ -57,7 +57,6 @@ from motion_style_ros.io.datasets import rotation_stats
 from motion_style_ros.runtime.controls import Controls
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 
-UP = np.array([0.0, 1.0, 0.0])
 INPUTS = ("features", "style", "alpha", "state", "reset")
 QUATERNION_TOLERANCE = 0.1  # |norm - 1| above this is rejected, below it normalised
 STAMP_TOLERANCE = 1e-6  # s: a model frame this close to an input frame takes that frame as it is
@@ -71,8 +70,8 @@ class RecurrentSession:
     ONNX Runtime threads; ``phase_seconds`` (in [0, 1 / fps)): how much later than the stream's
     start the model's clock ticks, so that sessions serving several streams in one process run
     their model frames on different input frames rather than all on the same one; ``foot_lock``
-    and ``ground``: see the module docstring. Until :meth:`set_style`, every performer gets the model's neutral style (its card's
-    ``neutral_style``) at alpha 1.
+    and ``ground``: see the module docstring. Until :meth:`set_style`, every performer gets the
+    model's neutral style (its card's ``neutral_style``) at alpha 1.
     """
 
     def __init__(
@@ -133,7 +132,7 @@ class RecurrentSession:
         self._standing = Standing(self.performers, self.fps, self.skeleton) if foot_lock else None
         self._ground = (StreamGround(self.performers, self.fps, rotation_stats()["ankle_height"])
                         if ground else None)
-        self._ground_ankles = [self.skeleton.index(n) for n in ANKLES]
+        self._ankle_joints = [self.skeleton.index(n) for n in ANKLES]  # what grounding and foot locks read
         self._fresh = np.ones(self.performers, dtype=bool)
         self._phase = 0.0
 
@@ -234,10 +233,10 @@ class RecurrentSession:
             positions = np.broadcast_to(self.skeleton.offsets, q.shape[:-1] + (3,)).copy()
             positions[:, self.skeleton.pelvis] = p
             _, g_pos = forward_kinematics(self.skeleton, q, positions, joints=[])
-            self._ground.start(g_pos[:, self._ground_ankles], fresh)
+            self._ground.start(g_pos[:, self._ankle_joints], fresh)
         lift = self._ground.offset[:, None] * UP
         features = self._encoder(q, p - lift)
-        self._ground.update(self._encoder.positions[:, self._ground_ankles] + lift[:, None])
+        self._ground.update(self._encoder.positions[:, self._ankle_joints] + lift[:, None])
         return features, lift
 
     def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
@@ -260,7 +259,7 @@ class RecurrentSession:
         output = out["output"] if self._standing is None else self._standing(out["output"], features)
         frame = self._decoder(output)
         if self._foot_lock is not None:
-            ankles = self._encoder.positions[:, self._foot_lock.ankles]
+            ankles = self._encoder.positions[:, self._ankle_joints]
             frame = self._foot_lock(*frame, ankles), frame[1]
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)

@@ -35,7 +35,6 @@ import numpy as np
 
 from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.core.features import encode
-from motion_style_ros.core.foot_lock import LEGS
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
@@ -114,7 +113,6 @@ class WindowedSession(RecurrentSession):
         self.style_encoder = OnnxModel(companions["style_encoder"], threads)
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
                            foot_lock, ground, delay_frames=self.lookahead)
-        self._ankle_joints = [self.skeleton.index(leg[-1]) for leg in LEGS]
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
         # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
@@ -250,8 +248,8 @@ class WindowedSession(RecurrentSession):
             frame = self._foot_lock(*frame, ankles), frame[1]
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)
-        lift = self._lifts[np.arange(self.performers), slot]
-        self._outputs = [*self._outputs[-1:], (t - lookahead / self.fps, frame[0], frame[1] + lift)]
+        shown_lift = self._lifts[np.arange(self.performers), slot]  # the lift of the frame emitted
+        self._outputs = [*self._outputs[-1:], (t - lookahead / self.fps, frame[0], frame[1] + shown_lift)]
 
     # --- codes --------------------------------------------------------------------------------
 
