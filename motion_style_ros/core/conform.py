@@ -138,7 +138,7 @@ class StreamGround:
         """Follow one frame's ankle world positions ``(P, 2, 3)`` (the stream's own, not moved);
         returns the offsets ``(P,)``."""
         with np.errstate(invalid="ignore"):  # NaN speed on a first frame: not still
-            still = np.linalg.norm(ankles - self._last, axis=-1) * self._fps < self.speed
+            still = rot.norm(ankles - self._last) * self._fps < self.speed
         self._last = ankles
         planted = still.any(axis=-1)
         height = np.where(still, ankles[..., 1], np.inf).min(axis=-1) - self.ankle_height

@@ -21,6 +21,7 @@ out). :func:`decode` rebuilds a motion from ``root`` and ``rot6d``; ``pos``, ``v
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,9 +48,14 @@ class FeatureLayout:
     joints: tuple[int, ...]  # skeleton joints described by the per-joint blocks
     slices: dict[str, slice]
 
-    @property
+    @functools.cached_property
     def size(self) -> int:
         return max(s.stop for s in self.slices.values())
+
+    @functools.cached_property
+    def index(self) -> np.ndarray:
+        """``joints`` as an index array (a tuple is converted on every use)."""
+        return np.array(self.joints, dtype=np.intp)
 
 
 def feature_layout(skeleton: Skeleton | None = None) -> FeatureLayout:
@@ -82,10 +88,26 @@ def _check_canonical(sk: Skeleton) -> None:
 def facing_yaw(global_positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     """Heading of the body (radians about +Y, 0 = facing +Z) from hips and shoulders, per frame."""
     p = global_positions
-    ul, ur, al, ar = (skeleton.index(n) for n in _ACROSS)
+    ul, ur, al, ar = _joints(skeleton, _ACROSS)
     across = (p[..., ul, :] - p[..., ur, :]) + (p[..., al, :] - p[..., ar, :])
     forward = rot.cross(across, UP)
     return np.arctan2(forward[..., 0], forward[..., 2])
+
+
+@functools.cache
+def _joints(skeleton: Skeleton, names: tuple[str, ...]) -> list[int]:
+    """Indices of named joints, looked up once per skeleton (streamed frames ask every time)."""
+    return [skeleton.index(n) for n in names]
+
+
+@functools.cache
+def _feet(skeleton: Skeleton) -> np.ndarray:
+    return np.array(skeleton.feet, dtype=np.intp)
+
+
+@functools.cache
+def _contact_heights(skeleton: Skeleton) -> np.ndarray:
+    return np.array([CONTACT_HEIGHT.get(skeleton.names[j], 0.1) for j in skeleton.feet])
 
 
 def foot_contacts(global_positions: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
@@ -94,11 +116,10 @@ def foot_contacts(global_positions: np.ndarray, skeleton: Skeleton, fps: float) 
 
 
 def _contacts(g_pos: np.ndarray, prev_g_pos: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
-    feet = list(skeleton.feet)
+    feet = _feet(skeleton)
     p = g_pos[..., feet, :]
-    speed = np.linalg.norm(p - prev_g_pos[..., feet, :], axis=-1) * fps
-    heights = np.array([CONTACT_HEIGHT.get(skeleton.names[j], 0.1) for j in feet])
-    return ((p[..., 1] < heights) & (speed < CONTACT_SPEED)).astype(np.float32)
+    speed = rot.norm(p - prev_g_pos[..., feet, :]) * fps
+    return ((p[..., 1] < _contact_heights(skeleton)) & (speed < CONTACT_SPEED)).astype(np.float32)
 
 
 def _previous(x: np.ndarray) -> np.ndarray:
@@ -116,9 +137,9 @@ def encode(motion: Motion) -> np.ndarray:
     _check_canonical(motion.skeleton)
     g_rot, g_pos = motion.global_transforms()
     sk = motion.skeleton
-    previous = _previous(g_pos)
-    return _encode_frames(sk, feature_layout(sk), motion.rotations, g_rot[:, sk.pelvis], g_pos, previous,
-                          motion.fps)
+    yaw = facing_yaw(g_pos, sk)
+    return _encode_frames(sk, feature_layout(sk), motion.rotations, g_rot[:, sk.pelvis], g_pos,
+                          _previous(g_pos), yaw, _previous(yaw), motion.fps)
 
 
 def _encode_frames(
@@ -128,17 +149,18 @@ def _encode_frames(
     pelvis_rot: np.ndarray,
     g_pos: np.ndarray,
     prev_g_pos: np.ndarray,
+    yaw: np.ndarray,
+    prev_yaw: np.ndarray,
     fps: float,
 ) -> np.ndarray:
     """Features of frames ``(..., J)`` (``pelvis_rot``: the pelvis's global rotation) given the
-    global positions of each one's previous frame.
+    global positions and heading (:func:`facing_yaw`) of each one's previous frame.
 
     The one implementation behind :func:`encode` (leading axis: time) and :class:`StreamEncoder`
     (leading axis: performers).
     """
-    joints = list(lay.joints)
+    joints = lay.index
     n = len(joints)
-    yaw = facing_yaw(g_pos, sk)
     inv_face = rot.conjugate(rot.from_yaw(yaw))  # (..., 4)
     ground = g_pos[..., sk.pelvis, :] * np.array([1.0, 0.0, 1.0])
     prev_ground = prev_g_pos[..., sk.pelvis, :] * np.array([1.0, 0.0, 1.0])
@@ -150,7 +172,7 @@ def _encode_frames(
     facing = rot.rotate(inv_face[..., None, :], world)
 
     out = np.empty(yaw.shape + (lay.size,), dtype=np.float32)
-    yaw_rate = wrap_angle(yaw - facing_yaw(prev_g_pos, sk)) * fps
+    yaw_rate = wrap_angle(yaw - prev_yaw) * fps
     out[..., lay.slices["root"]] = np.stack(
         [facing[..., 0, 0], facing[..., 0, 2], g_pos[..., sk.pelvis, 1], yaw_rate], axis=-1
     )
@@ -178,8 +200,11 @@ def _check_decodable(f: np.ndarray, lay: FeatureLayout, lead: str) -> None:
 
 def _ground_step(root: np.ndarray, yaw: np.ndarray, fps: float) -> np.ndarray:
     """Ground displacement over one frame: the facing-frame velocity turned by the frame's heading."""
-    v = np.stack([root[..., 0], np.zeros_like(root[..., 0]), root[..., 1]], axis=-1)
-    return rot.rotate(rot.from_yaw(yaw), v) / fps
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    step = np.zeros(yaw.shape + (3,))
+    step[..., 0] = (cos * root[..., 0] + sin * root[..., 1]) / fps
+    step[..., 2] = (cos * root[..., 1] - sin * root[..., 0]) / fps
+    return step
 
 
 def _pose(
@@ -191,10 +216,11 @@ def _pose(
     lead = f.shape[:-1]
     rotations = rot.identity(lead + (sk.n_joints,))
     local = rot.from_6d(f[..., lay.slices["rot6d"]].reshape(lead + (len(lay.joints), 6)))
-    rotations[..., list(lay.joints), :] = local
+    rotations[..., lay.index, :] = local
     # Joints above the pelvis (the canonical static root) stay identity at the origin.
     rotations[..., sk.pelvis, :] = rot.multiply(rot.from_yaw(yaw), local[..., 0, :])
-    root_pos = ground + f[..., lay.slices["root"]][..., 2:3] * UP
+    root_pos = ground.copy()
+    root_pos[..., 1] += f[..., lay.slices["root"].start + 2]
     return rotations, root_pos
 
 
@@ -239,6 +265,7 @@ class StreamEncoder:
         self.fps = fps
         self._layout = feature_layout(self.skeleton)
         self._last = np.zeros((performers, self.skeleton.n_joints, 3))  # global positions
+        self._yaw = np.zeros(performers)  # and facing_yaw
         self._fresh = np.ones(performers, dtype=bool)
 
     def reset(self, which: Mask = None) -> None:
@@ -252,9 +279,12 @@ class StreamEncoder:
         positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
         positions[:, sk.pelvis] = root_positions
         g_rot, g_pos = forward_kinematics(sk, rotations, positions, joints=[sk.pelvis])
+        yaw = facing_yaw(g_pos, sk)
         previous = np.where(self._fresh[:, None, None], g_pos, self._last)
-        out = _encode_frames(sk, self._layout, rotations, g_rot[:, 0], g_pos, previous, self.fps)
-        self._last, self._fresh[:] = g_pos, False
+        prev_yaw = np.where(self._fresh, yaw, self._yaw)
+        out = _encode_frames(sk, self._layout, rotations, g_rot[:, 0], g_pos, previous, yaw, prev_yaw,
+                             self.fps)
+        self._last, self._yaw, self._fresh[:] = g_pos, yaw, False
         return out
 
     @property
@@ -266,7 +296,7 @@ class StreamEncoder:
         """Ground point ``(P, 3)`` (x, 0, z) and heading ``(P,)`` of each performer's last frame:
         where a :class:`StreamDecoder` starts to follow that performer."""
         ground = self._last[:, self.skeleton.pelvis] * np.array([1.0, 0.0, 1.0])
-        return ground, facing_yaw(self._last, self.skeleton)
+        return ground, self._yaw.copy()
 
 
 class StreamDecoder:

@@ -54,6 +54,7 @@ class FootLock:
         # the joints whose world rotations the IK needs: the hips' parents, then hip, knee, ankle
         self._legs = [int(j) for joints in ([sk.parents[j] for j in self._hip], self._hip, self._knee,
                                             self._ankle) for j in joints]
+        self._chain = np.concatenate([self._hip, self._knee, self._ankle])
         self._height = np.array([CONTACT_HEIGHT[sk.names[j]] for j in self._ankle])
         self._toes = sk.offsets[[sk.index(n) for n in TOES]]  # the feet's forward vectors
         self._fade = 1.0 / max(release_seconds * self.fps, 1.0)  # weight lost per frame
@@ -94,7 +95,7 @@ class FootLock:
         positions[:, sk.pelvis] = root_positions
         g_rot, g_pos = forward_kinematics(sk, rotations, positions, self._legs)
         hip, knee, ankle = g_pos[:, self._hip], g_pos[:, self._knee], g_pos[:, self._ankle]
-        speed = np.linalg.norm(input_ankles - self._last, axis=-1) * self.fps  # NaN on a first frame
+        speed = rot.norm(input_ankles - self._last) * self.fps  # NaN on a first frame
         self._last = input_ankles
         contact = (input_ankles[..., 1] < self._height) & (speed < self.speed)
 
@@ -104,7 +105,7 @@ class FootLock:
         # A new lock lets the ankle glide on with the stylizer's motion, less each frame, so that it
         # comes to rest without a jolt.
         glide = self._locked & contact
-        self._target += np.where(glide[..., None], self._glide[..., None] * np.nan_to_num(step), 0.0)
+        self._target += np.where(glide[..., None], self._glide[..., None] * step, 0.0)  # finite where gliding
         self._glide = np.where(start, GLIDE, self._glide * GLIDE)
         self._target[start] = ankle[start]
         parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
@@ -113,7 +114,7 @@ class FootLock:
         self._heading[start] = heading[start]
         # the leash: a held ankle at most max_stretch from the stylizer's
         away = ankle - self._target
-        reach = np.linalg.norm(away, axis=-1, keepdims=True)
+        reach = rot.norm(away, keepdims=True)
         self._target += np.where(self._locked[..., None] & (reach > self.max_stretch),
                                  away * (1.0 - self.max_stretch / np.maximum(reach, _EPS)), 0.0)
         released = self._locked & ~contact
@@ -129,33 +130,38 @@ class FootLock:
         if self.clearance:
             goal[..., 1] = np.where(contact, goal[..., 1], np.maximum(goal[..., 1], input_ankles[..., 1]))
         turn = np.where(contact, wrap_angle(self._heading - heading), fade * self._turn)
-        moved = (np.linalg.norm(goal - ankle, axis=-1) > _NEAR) | (np.abs(turn) > _NEAR)
+        moved = (rot.norm(goal - ankle) > _NEAR) | (np.abs(turn) > _NEAR)
         if not moved.any():
             return rotations.copy()
         g_upper, g_lower = self._two_bone(g_upper, g_lower, hip, knee, ankle, goal)
         g_foot = rot.multiply(rot.from_yaw(turn), g_foot)
+        # local = parent's world^-1 * world, for upper leg, lower leg and foot in one call
+        local = rot.multiply(rot.conjugate(np.concatenate([parent, g_upper, g_lower], axis=1)),
+                             np.concatenate([g_upper, g_lower, g_foot], axis=1))
         out = rotations.copy()
-        for joints, local in ((self._hip, rot.multiply(rot.conjugate(parent), g_upper)),
-                              (self._knee, rot.multiply(rot.conjugate(g_upper), g_lower)),
-                              (self._ankle, rot.multiply(rot.conjugate(g_lower), g_foot))):
-            out[:, joints] = np.where(moved[..., None], local, out[:, joints])
+        out[:, self._chain] = np.where(np.tile(moved, 3)[..., None], local, out[:, self._chain])
         return out
 
     def _two_bone(self, g_upper, g_lower, hip, knee, ankle, goal):
         """World rotations of upper and lower leg that put the ankle at ``goal`` (as near as the
         leg reaches): bend the knee to the goal's distance, then swing the hip onto it."""
         u, v = hip - knee, ankle - knee
-        a, b = np.linalg.norm(u, axis=-1), np.linalg.norm(v, axis=-1)
+        a, b = rot.norm(u), rot.norm(v)
         axis = rot.cross(u, v)
-        size = np.linalg.norm(axis, axis=-1, keepdims=True)
+        size = rot.norm(axis, keepdims=True)
         good = size[..., 0] > 1e-6 * a * b
         self._axis[good] = (axis / np.maximum(size, _EPS))[good]
         axis = self._axis  # zero until the leg was first seen bent: then the knee is left alone
-        known = np.any(axis != 0.0, axis=-1)
-        c = np.clip(np.linalg.norm(goal - hip, axis=-1), np.abs(a - b) + 1e-4, a + b - 1e-4)
-        now = np.arccos(np.clip(np.sum(u * v, axis=-1) / np.maximum(a * b, _EPS), -1.0, 1.0))
-        wanted = np.arccos(np.clip((a * a + b * b - c * c) / np.maximum(2 * a * b, _EPS), -1.0, 1.0))
+        known = (axis != 0.0).any(axis=-1)
+        c = np.minimum(np.maximum(rot.norm(goal - hip), np.abs(a - b) + 1e-4), a + b - 1e-4)
+        now = np.arccos(_unit_clip(np.add.reduce(u * v, axis=-1) / np.maximum(a * b, _EPS)))
+        wanted = np.arccos(_unit_clip((a * a + b * b - c * c) / np.maximum(2 * a * b, _EPS)))
         bend = rot.from_axis_angle(axis, np.where(known, wanted - now, 0.0))
         ankle = knee + rot.rotate(bend, v)
         swing = rot.between(ankle - hip, goal - hip)
         return rot.multiply(swing, g_upper), rot.multiply(swing, rot.multiply(bend, g_lower))
+
+
+def _unit_clip(x: np.ndarray) -> np.ndarray:
+    """``x`` clipped to [-1, 1] (np.clip costs twice as much on one frame's few numbers)."""
+    return np.minimum(np.maximum(x, -1.0), 1.0)

@@ -20,8 +20,14 @@ def identity(shape: tuple[int, ...] = (), dtype=np.float64) -> np.ndarray:
     return q
 
 
+def norm(v: np.ndarray, keepdims: bool = False) -> np.ndarray:
+    """Euclidean length along the last axis (``np.linalg.norm``'s checks cost more than the maths
+    on the small arrays of one streamed frame)."""
+    return np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=keepdims))
+
+
 def normalize(q: np.ndarray) -> np.ndarray:
-    return q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), _EPS)
+    return q / np.maximum(norm(q, keepdims=True), _EPS)
 
 
 def conjugate(q: np.ndarray) -> np.ndarray:
@@ -73,12 +79,13 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + w * t + cross(u, t)
 
 
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``np.cross`` of 3-vectors, same numbers; np.cross's axis handling costs more than the maths
     on the small arrays of one streamed frame."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    return a[..., _NEXT] * b[..., _AFTER] - a[..., _AFTER] * b[..., _NEXT]
 
 
 def _matrix_table() -> np.ndarray:
@@ -125,6 +132,7 @@ def _outer_table() -> tuple[np.ndarray, np.ndarray]:
 
 
 _OUTER, _OUTER_CONST = _outer_table()
+_DIAGONAL = np.arange(4)
 
 
 def from_matrix(m: np.ndarray) -> np.ndarray:
@@ -135,8 +143,9 @@ def from_matrix(m: np.ndarray) -> np.ndarray:
     """
     lead = m.shape[:-2]
     outer = (m.reshape(lead + (9,)) @ _OUTER + _OUTER_CONST).reshape(lead + (4, 4))
-    best = np.argmax(np.diagonal(outer, axis1=-2, axis2=-1), axis=-1)
-    q = np.take_along_axis(outer, best[..., None, None], axis=-1)[..., 0]
+    rows = outer.reshape(-1, 4, 4)  # symmetric: row ``best`` is column ``best``
+    best = np.argmax(rows[:, _DIAGONAL, _DIAGONAL], axis=-1)
+    q = rows[np.arange(len(rows)), best].reshape(lead + (4,))
     q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
     return normalize(q)
 
@@ -187,22 +196,25 @@ def to_euler(q: np.ndarray, order: str, degrees: bool = False) -> np.ndarray:
 
 def from_axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     axis = np.asarray(axis, dtype=np.float64)
-    axis = axis / np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), _EPS)
+    axis = axis / np.maximum(norm(axis, keepdims=True), _EPS)
     half = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
     return np.concatenate([np.cos(half), np.sin(half) * axis], axis=-1)
 
 
 def from_yaw(yaw: np.ndarray) -> np.ndarray:
     """Rotation about +Y (the up axis of the motion core)."""
-    yaw = np.asarray(yaw, dtype=np.float64)
-    return from_axis_angle(np.broadcast_to([0.0, 1.0, 0.0], yaw.shape + (3,)), yaw)
+    half = 0.5 * np.asarray(yaw, dtype=np.float64)
+    q = np.zeros(half.shape + (4,))
+    q[..., 0] = np.cos(half)
+    q[..., 2] = np.sin(half)
+    return q
 
 
 def between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Shortest-arc rotation taking direction ``u`` onto direction ``v``."""
-    u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), _EPS)
-    v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _EPS)
-    w = 1.0 + np.sum(u * v, axis=-1, keepdims=True)
+    u = u / np.maximum(norm(u, keepdims=True), _EPS)
+    v = v / np.maximum(norm(v, keepdims=True), _EPS)
+    w = 1.0 + np.add.reduce(u * v, axis=-1, keepdims=True)
     xyz = cross(u, v)
     opposite = w[..., 0] < 1e-9
     if np.any(opposite):  # 180 degrees: turn about any axis orthogonal to u
@@ -228,7 +240,7 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarray:
     t = np.asarray(t, dtype=np.float64)
     if t.ndim:
         t = t[..., None]
-    dot = np.sum(a * b, axis=-1, keepdims=True)
+    dot = np.add.reduce(a * b, axis=-1, keepdims=True)
     b = np.where(dot < 0, -b, b)
     dot = np.abs(dot)
     theta = np.arccos(np.clip(dot, -1.0, 1.0))
@@ -249,19 +261,22 @@ def make_continuous(q: np.ndarray, axis: int = 0) -> np.ndarray:
     return np.moveaxis(q, 0, axis)
 
 
+_FIRST_COLUMNS = _MATRIX[:, [0, 3, 6, 1, 4, 7]]  # the table's entries of matrix columns 0 and 1
+
+
 def to_6d(q: np.ndarray) -> np.ndarray:
     """Continuous 6D representation (Zhou et al. 2019): the first two matrix columns."""
-    m = to_matrix(q)
-    return np.concatenate([m[..., :, 0], m[..., :, 1]], axis=-1)
+    q = normalize(q)
+    return (q[..., :, None] * q[..., None, :]).reshape(q.shape[:-1] + (16,)) @ _FIRST_COLUMNS
 
 
 def matrix_from_6d(d6: np.ndarray) -> np.ndarray:
     """Gram-Schmidt back to a rotation matrix; any 6-vector with independent halves is valid."""
     a = d6[..., :3]
     b = d6[..., 3:6]
-    x = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), _EPS)
-    b = b - np.sum(x * b, axis=-1, keepdims=True) * x
-    y = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), _EPS)
+    x = a / np.maximum(norm(a, keepdims=True), _EPS)
+    b = b - np.add.reduce(x * b, axis=-1, keepdims=True) * x
+    y = b / np.maximum(norm(b, keepdims=True), _EPS)
     z = cross(x, y)
     return np.stack([x, y, z], axis=-1)
 

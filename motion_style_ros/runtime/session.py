@@ -307,7 +307,7 @@ class RecurrentSession:
                 f"performer {int(np.argmax(bad))}: NaN or infinite values in the frame"
             )
         q, p = q.astype(np.float64), p.astype(np.float64)
-        norm = np.linalg.norm(q, axis=-1)
+        norm = rot.norm(q)
         off = np.abs(norm - 1.0) > QUATERNION_TOLERANCE
         if off.any():
             k, joint = np.argwhere(off)[0]
