@@ -64,6 +64,13 @@ def add_parser(subparsers):
                             "(without it, an earlier run's checkpoint is discarded)")
     stgcn.add_argument("--out", default=None,
                        help="folder for stgcn*.onnx and the card (default: the shipped models/)")
+    stgcn.add_argument("--init-from", type=int, default=None, metavar="SEED",
+                       help="a new run continues this seed's checkpoint (weights, optimisers, "
+                            "iterations and time) under this run's settings")
+    stgcn.add_argument("--ds-cap", type=float, default=None, metavar="M",
+                       help="diversity loss on the pelvis-relative pose, pushing two seeds apart "
+                            "until their joints differ by M metres on average (default: on the "
+                            "normalised output channels, uncapped)")
     stgcn.set_defaults(func=run_stgcn)
 
 
@@ -137,9 +144,12 @@ def run_stgcn(args) -> int:
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
     out = Path(args.out) if args.out else models_dir()
     command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}" + (
-        f" --iterations {args.iterations}" if args.iterations is not None else "")
-    card = stgcn.train(stgcn.Config(seed=args.seed), out, args.minutes, args.iterations,
-                       args.resume, threads=args.threads, command=command + " --resume")
+        f" --iterations {args.iterations}" if args.iterations is not None else "") + (
+        f" --init-from {args.init_from}" if args.init_from is not None else "") + (
+        f" --ds-cap {args.ds_cap:g}" if args.ds_cap is not None else "")
+    card = stgcn.train(stgcn.Config(seed=args.seed, ds_cap=args.ds_cap), out, args.minutes,
+                       args.iterations, args.resume, threads=args.threads, command=command + " --resume",
+                       init_from=args.init_from)
     history = card["training"]["history"]
     val = history["val"][-1]
     print(f"stgcn: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "

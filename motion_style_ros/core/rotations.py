@@ -80,6 +80,7 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 _NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])
+_CHANNELS = np.arange(3)
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -161,13 +162,10 @@ def from_euler(angles: np.ndarray, order: str, degrees: bool = False) -> np.ndar
     if degrees:
         angles = np.deg2rad(angles)
     half = 0.5 * angles
-    out = identity(angles.shape[:-1])
-    for i, axis in enumerate(order):
-        q = np.zeros(angles.shape[:-1] + (4,))
-        q[..., 0] = np.cos(half[..., i])
-        q[..., 1 + "XYZ".index(axis)] = np.sin(half[..., i])
-        out = multiply(out, q)
-    return out
+    q = np.zeros(angles.shape + (4,))  # one rotation per channel
+    q[..., 0] = np.cos(half)
+    q[..., _CHANNELS, [1 + "XYZ".index(axis) for axis in order]] = np.sin(half)
+    return multiply(multiply(q[..., 0, :], q[..., 1, :]), q[..., 2, :])
 
 
 def to_euler(q: np.ndarray, order: str, degrees: bool = False) -> np.ndarray:

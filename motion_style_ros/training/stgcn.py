@@ -82,11 +82,15 @@ class Config:
     w_r1: float = 1.0
     r1_every: int = 4
     w_sty: float = 1.0
-    # decays linearly to 0 over ds_iterations; measured on the pelvis-relative pose in metres.
-    # On all normalised output channels instead (seed 1's model, at 4 over 20000), the seeds
-    # mostly moved the root path: poses 14 mm apart against 81 mm between styles
+    # decays linearly to 0 over ds_iterations. Measured on all normalised output channels (seed 1's
+    # model), the seeds mostly moved the root path: poses 14 mm apart against 81 mm between
+    # styles. Measured on the pelvis-relative pose without a cap (seed 2's run), the seeds drifted
+    # 2.7 times further apart than the styles and styles stopped transferring (13 % recognised at
+    # 4000 iterations against 89 %). With ds_cap (m), a pair of seeds is pushed apart only until
+    # their poses differ by that much on average over the joints.
     w_ds: float = 4.0
     ds_iterations: int = 20000
+    ds_cap: float | None = None
     w_cyc: float = 1.0
     w_id: float = 1.0
     w_cls: float = 1.0
@@ -169,6 +173,28 @@ class Trainer(RecurrentTrainer):
         self.val_targets = (self.val_windows[1] + torch.from_numpy(
             val_rng.integers(1, len(data.styles), 64))) % len(data.styles)
         self.in_std = torch.as_tensor(std, dtype=torch.float32)
+        self.out_std = torch.as_tensor(std[: net.n_out], dtype=torch.float32)
+
+    NETWORK_SETTINGS = ("datasets", "window", "widths", "style_dim", "latent_dim", "mapping_hidden",
+                        "std_floor")
+
+    def initialise(self, checkpoint: Path) -> None:
+        """Continue another run (its weights, optimiser states, iteration count and time) under this
+        run's loss settings; the networks and the data must be the same."""
+        if not checkpoint.exists():
+            raise MotionStyleError(f"{checkpoint}: no checkpoint to start from")
+        saved = torch.load(checkpoint, weights_only=False)
+        mine = self._settings()
+        if ([saved["config"].get(k) for k in self.NETWORK_SETTINGS]
+                != [mine["config"][k] for k in self.NETWORK_SETTINGS]
+                or (saved["styles"], saved["contents"]) != (mine["styles"], mine["contents"])):
+            raise MotionStyleError(f"{checkpoint} has other networks or data than this run "
+                                   f"({', '.join(self.NETWORK_SETTINGS)}, styles and contents must match)")
+        for name in self.PARTS:
+            getattr(self, name).load_state_dict(saved[name])
+        self.state = {**saved["state"], "init_from": {
+            "checkpoint": str(checkpoint), "iteration": saved["state"]["iteration"],
+            "train_seconds": round(saved["state"]["train_seconds"], 1), "config": saved["config"]}}
 
     @property
     def model(self) -> Generator:
@@ -229,8 +255,12 @@ class Trainer(RecurrentTrainer):
         adv = F.softplus(-_at(self.dis(fake), target)).mean()
         sty = (s_trg - pick(self.encoder(fake)[0], target)).abs().mean()
         with torch.no_grad():
-            pose2 = _pose(self.losses.views(self.gen(x, s_trg2))["pos"])
-        ds = (_pose(fake_views["pos"]) - pose2).norm(dim=-1).mean() / self.losses.pos_scale
+            out2 = self.gen(x, s_trg2)
+        if cfg.ds_cap is None:
+            ds = ((out - out2) / self.out_std).abs().mean()
+        else:  # per window: mean joint distance of the two poses, up to the cap
+            apart = (_pose(fake_views["pos"]) - _pose(self.losses.views(out2)["pos"])).norm(dim=-1)
+            ds = apart.mean(dim=(1, 2)).clamp(max=cfg.ds_cap).mean() / self.losses.pos_scale
         codes, logits = self.encoder(x)
         s_src = pick(codes, style)
         cls = F.cross_entropy(logits, style)
@@ -422,12 +452,16 @@ def write_model(gen: Generator, mapping: MappingNetwork, encoder: StyleEncoder, 
 def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: int | None = None,
           resume: bool = False, checkpoints: Path = CHECKPOINTS, threads: int = 2,
           data: Data | None = None, progress: bool = True, command: str = "",
-          log_every: int = 25, val_every: int = 500) -> dict:
-    """Train (resuming when asked), export the weight averages to ``out_dir``; returns the card."""
+          log_every: int = 25, val_every: int = 500, init_from: int | None = None) -> dict:
+    """Train (resuming when asked; a new run with ``init_from`` continues that seed's run under
+    this config), export the weight averages to ``out_dir``; returns the card."""
     torch.set_num_threads(threads)
     started = time.perf_counter()
     data = data or load_data(cfg.datasets, progress)
     trainer = Trainer.started(cfg, data, checkpoints, progress, resume)
+    if init_from is not None and trainer.state["iteration"] == 0:
+        trainer.initialise(checkpoints / f"{NAME}_{init_from}" / "checkpoint.pt")
+        print(f"continuing seed {init_from}'s run at iteration {trainer.state['iteration']}")
     setup_s = time.perf_counter() - started
     trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
     probe = max(data.splits["val"].features, key=len)
@@ -440,6 +474,7 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
         "config": asdict(cfg),
         "wall_time_s": round(trainer.state["train_seconds"] + setup_s, 1),
         "history": trainer.summary(),
+        **({"continued_from": trainer.state["init_from"]} if "init_from" in trainer.state else {}),
         "exported": f"exponential moving averages of the three networks' weights (decay {cfg.ema})",
         "differences_from_paper": [
             (f"widths {cfg.widths} instead of (64, 128, 256), {cfg.window}-frame windows at 30 fps, "
