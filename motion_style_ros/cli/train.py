@@ -67,6 +67,9 @@ def add_parser(subparsers):
     stgcn.add_argument("--init-from", type=int, default=None, metavar="SEED",
                        help="a new run continues this seed's checkpoint (weights, optimisers, "
                             "iterations and time) under this run's settings")
+    stgcn.add_argument("--ds-weight", type=float, default=None, metavar="W",
+                       help="weight of the diversity loss at iteration 0, decaying linearly to 0 "
+                            "(default: 4)")
     stgcn.add_argument("--ds-cap", type=float, default=None, metavar="M",
                        help="diversity loss on the pelvis-relative pose, pushing two seeds apart "
                             "until their joints differ by M metres on average (default: on the "
@@ -146,8 +149,10 @@ def run_stgcn(args) -> int:
     command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}" + (
         f" --iterations {args.iterations}" if args.iterations is not None else "") + (
         f" --init-from {args.init_from}" if args.init_from is not None else "") + (
-        f" --ds-cap {args.ds_cap:g}" if args.ds_cap is not None else "")
-    card = stgcn.train(stgcn.Config(seed=args.seed, ds_cap=args.ds_cap), out, args.minutes,
+        f" --ds-cap {args.ds_cap:g}" if args.ds_cap is not None else "") + (
+        f" --ds-weight {args.ds_weight:g}" if args.ds_weight is not None else "")
+    changes = {"ds_cap": args.ds_cap, **({"w_ds": args.ds_weight} if args.ds_weight is not None else {})}
+    card = stgcn.train(stgcn.Config(seed=args.seed, **changes), out, args.minutes,
                        args.iterations, args.resume, threads=args.threads, command=command + " --resume",
                        init_from=args.init_from)
     history = card["training"]["history"]
