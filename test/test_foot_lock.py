@@ -19,12 +19,17 @@ def walk(datasets):
 
 
 def locked(motion: Motion, lock: FootLock, source: Motion | None = None) -> Motion:
-    """``motion`` frame by frame through ``lock``, with contacts from ``source`` (default: itself)."""
+    """``motion`` frame by frame through ``lock``, with contacts from ``source`` (default: itself);
+    a root the lock held back goes on from there, as a session's integrated trajectory does."""
     roots = motion.positions[:, motion.skeleton.pelvis]
     ankles = (source or motion).global_positions()[:, lock.ankles]
-    out = np.concatenate([lock(motion.rotations[t:t + 1], roots[t:t + 1], ankles[t:t + 1])
-                          for t in range(motion.n_frames)])
-    return Motion.from_rotations(motion.skeleton, out, roots, motion.fps)
+    moved, out_q, out_p = np.zeros(3), [], []
+    for t in range(motion.n_frames):
+        q, p = lock(motion.rotations[t:t + 1], roots[t:t + 1] + moved, ankles[t:t + 1])
+        moved = p[0] - roots[t]
+        out_q.append(q)
+        out_p.append(p)
+    return Motion.from_rotations(motion.skeleton, np.concatenate(out_q), np.concatenate(out_p), motion.fps)
 
 
 def sliding(motion: Motion) -> Motion:
@@ -45,6 +50,8 @@ def test_locking_cuts_foot_skating_and_leaves_the_rest_alone(walk):
                                              "UpperLeg_R", "LowerLeg_R", "Foot_R")]
     others = [j for j in range(walk.skeleton.n_joints) if j not in legs]
     assert np.array_equal(fixed.rotations[:, others], slid.rotations[:, others])
+    pelvis = walk.skeleton.pelvis
+    assert np.array_equal(fixed.positions[:, pelvis, 1], slid.positions[:, pelvis, 1])
     assert metrics.bone_length_error(fixed, walk.skeleton) < 1e-9
     # No pops: a locked leg turns about as fast as the input's legs do at most.
     def largest_step(m):
@@ -67,8 +74,8 @@ def test_reset_forgets_the_lock(walk):
     lock.reset()
     # After a reset, a frame teleported a metre away is taken as it is (no leg pulled back).
     far = roots[10:11] + np.array([1.0, 0.0, 0.0])
-    assert np.allclose(lock(walk.rotations[10:11], far, ankles[10:11] + [1.0, 0.0, 0.0]),
-                       walk.rotations[10:11])
+    q, p = lock(walk.rotations[10:11], far, ankles[10:11] + [1.0, 0.0, 0.0])
+    assert np.allclose(q, walk.rotations[10:11]) and np.array_equal(p, far)
 
 
 def test_clearance_lifts_feet_the_input_lifts(walk):
@@ -92,7 +99,7 @@ def test_clearance_lifts_feet_the_input_lifts(walk):
 def test_a_held_foot_follows_on_a_leash_when_the_stylizer_walks_off(walk):
     # The input stands on both feet throughout; the "stylized" output walks away. The lock holds
     # all along, and the held ankle trails the stylizer's by max_stretch at most.
-    lock = FootLock(1, walk.fps)
+    lock = FootLock(1, walk.fps, anchor_root=False)
     sk = walk.skeleton
     roots = walk.positions[:, sk.pelvis]
     standing = Motion.from_rotations(sk, walk.rotations[:1].repeat(walk.n_frames, 0),
@@ -120,8 +127,8 @@ def test_a_planted_foot_keeps_its_heading(walk):
     toes = [sk.index(n) for n in ("Toes_L", "Toes_R")]
     headings, held = [], []
     for t in range(walk.n_frames):
-        out = lock(pivoting.rotations[t:t + 1], roots[t:t + 1], inputs[t:t + 1])
-        g = Motion.from_rotations(sk, out, roots[t:t + 1], walk.fps).global_positions()[0]
+        out, root = lock(pivoting.rotations[t:t + 1], roots[t:t + 1], inputs[t:t + 1])
+        g = Motion.from_rotations(sk, out, root, walk.fps).global_positions()[0]
         forward = g[toes] - g[ankles]
         headings.append(np.arctan2(forward[:, 0], forward[:, 2]))
         held.append(lock._locked[0].copy())
@@ -131,3 +138,21 @@ def test_a_planted_foot_keeps_its_heading(walk):
     turn = np.abs(np.angle(np.exp(1j * np.diff(headings, axis=0))))
     assert turn[both].max() < 1e-6
     assert np.median(turn[~both]) > np.radians(1.0)  # the stylizer's pivot elsewhere
+
+
+def test_an_anchored_root_covers_the_ground_its_legs_cover(walk):
+    # The walk's root pushed 30 % further than its legs carry it: with the leash alone the planted
+    # feet are dragged after it; anchored, the root is held back instead, never past standing still.
+    slid = sliding(walk)
+    anchored = locked(slid, FootLock(1, walk.fps), source=walk)
+    leashed = locked(slid, FootLock(1, walk.fps, anchor_root=False), source=walk)
+    assert metrics.foot_skating(anchored) < 0.85 * metrics.foot_skating(leashed)  # 0.80 measured
+    pelvis = walk.skeleton.pelvis
+    step = {name: np.diff(m.positions[:, pelvis][:, [0, 2]], axis=0)
+            for name, m in (("walk", walk), ("slid", slid), ("anchored", anchored))}
+    assert (np.linalg.norm(step["anchored"], axis=-1) <= np.linalg.norm(step["slid"], axis=-1) + 1e-9).all()
+    assert (np.einsum("ij,ij->i", step["anchored"], step["slid"]) >= -1e-12).all()  # never backwards
+    travelled = {name: np.linalg.norm(s.sum(axis=0)) for name, s in step.items()}
+    assert travelled["anchored"] < 0.5 * (travelled["walk"] + travelled["slid"])  # nearer the walk's
+    assert metrics.bone_length_error(anchored, walk.skeleton) < 1e-9
+

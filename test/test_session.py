@@ -380,3 +380,20 @@ def test_bench_command(model, capsys):
     assert "model call alone, 1 performer, onnxruntime: p50" in out
     # The torch generator is timed only from a checkpoint of the same model.
     assert "model call alone, 1 performer, torch" not in out
+
+
+def test_an_anchored_root_is_only_ever_held_back(clips):
+    # The shipped model's "active" walks faster than a normal walk's legs carry it: the foot lock
+    # holds the root back (anchor_root), along its own path, never backwards, never up or down.
+    walk = clips[0]
+    anchored = RecurrentSession("style_erd.onnx")
+    free = RecurrentSession("style_erd.onnx")
+    free._foot_lock.anchor_root = False
+    a, f = (s.run(walk, "active").positions[:, walk.skeleton.pelvis] for s in (anchored, free))
+    assert np.allclose(a[:, 1], f[:, 1])
+    step_a, step_f = np.diff(a[:, [0, 2]], axis=0), np.diff(f[:, [0, 2]], axis=0)
+    assert (np.linalg.norm(step_a, axis=-1) <= np.linalg.norm(step_f, axis=-1) + 1e-9).all()
+    assert (np.einsum("ij,ij->i", step_a, step_f) >= -1e-12).all()
+    path_a, path_f = np.linalg.norm(step_a, axis=-1).sum(), np.linalg.norm(step_f, axis=-1).sum()
+    print(f"active on a normal walk: root path {path_f:.2f} m free, {path_a:.2f} m anchored")
+    assert path_a < path_f - 0.05

@@ -331,6 +331,11 @@ class StreamDecoder:
         self._ground[go] += gain * (target - self._ground[go])
         self._yaw[go] += gain * wrap_angle(np.asarray(yaw)[go] - self._yaw[go])
 
+    def move(self, offset: np.ndarray) -> None:
+        """Move every performer's ground point by ``offset`` ``(P, 3)`` (its horizontal part): the
+        trajectory goes on from where a correction of the last frame's root put it."""
+        self._ground += np.asarray(offset, dtype=np.float64) * np.array([1.0, 0.0, 1.0])
+
     def __call__(self, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Local rotations ``(P, J, 4)`` and pelvis positions ``(P, 3)`` of one frame of features
         ``(P, F)`` (or the ``root`` and ``rot6d`` blocks alone)."""

@@ -12,7 +12,15 @@ roll the stylizer gives it (its heel-toe roll). Where the stylizer's own ankle m
 ``max_stretch`` away, the held one is dragged after it on that leash: a style that walks on while
 the performer stands slides the foot only that far behind, rather than letting go and snapping the
 leg back. When contact ends, the correction fades out over ``release_seconds``. Only the local
-rotations of the upper leg, lower leg and foot change; the root and every other joint are untouched.
+rotations of the upper leg, lower leg and foot change, and every other joint is untouched.
+
+With ``anchor_root`` (the default), the root is held back where a style runs faster than its legs:
+once a held ankle's stylized one has run more than ``anchor_stretch`` further since landing than
+the input's ankle has, while the stylized foot is down too (its ankle low: not a foot of another
+footfall, swinging), the root moves back along its step of that frame, at most the whole step
+(held back, never pushed backwards). The output then covers the ground its stance legs cover, as
+a walk does; with the leash alone, an "active" style ran an unseen walk at twice its speed and
+dragged the planted feet at 1.3 m/s.
 
 With ``clearance`` (the default), a foot the input lifts is also lifted in the output: the output's
 ankle is never lower than the input's, so a stylized foot cannot skim the floor while the
@@ -35,6 +43,8 @@ TOES = ("Toes_L", "Toes_R")
 _EPS = 1e-9
 GLIDE = 0.5  # a new lock follows this much of the stylizer's ankle motion, then its square, ...
 _NEAR = 1e-6  # m: a goal this close to the ankle leaves the leg as it is
+ANCHOR_EASE = 0.3  # the fraction of the way to the wanted hold-back the root goes each frame
+DOWN = 0.08  # m: a stylized ankle this far above the contact height is still down (on its toes)
 
 
 class FootLock:
@@ -47,7 +57,8 @@ class FootLock:
 
     def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None,
                  release_seconds: float = 0.4, max_stretch: float = 0.1,
-                 speed: float = 0.3, clearance: bool = True) -> None:
+                 speed: float = 0.3, clearance: bool = True, anchor_root: bool = True,
+                 anchor_stretch: float = 0.02) -> None:
         self.skeleton = sk = skeleton or canonical()
         self.fps = float(fps)
         self._hip, self._knee, self._ankle = (np.array([sk.index(leg[k]) for leg in LEGS]) for k in range(3))
@@ -61,9 +72,14 @@ class FootLock:
         self.max_stretch = max_stretch
         self.speed = speed
         self.clearance = clearance
+        self.anchor_root = anchor_root
+        self.anchor_stretch = anchor_stretch
+        self._last_root = np.full((performers, 3), np.nan)  # the output's root of the last frame
+        self._back = np.zeros(performers)  # how far the root is held back this frame (m)
         self._last = np.full((performers, 2, 3), np.nan)  # input ankle positions of the last frame
         self._last_out = np.full((performers, 2, 3), np.nan)  # and the stylizer's
         self._target = np.zeros((performers, 2, 3))  # where a locked ankle stays
+        self._landed = np.zeros((performers, 2, 3))  # where the input's ankle was when it landed
         self._offset = np.zeros((performers, 2, 3))  # target - ankle when the lock was released
         self._heading = np.zeros((performers, 2))  # a locked foot's heading (rad about +Y)
         self._turn = np.zeros((performers, 2))  # its heading - the stylizer's when released
@@ -77,6 +93,8 @@ class FootLock:
         which = slice(None) if which is None else which
         self._last[which] = np.nan
         self._last_out[which] = np.nan
+        self._last_root[which] = np.nan
+        self._back[which] = 0.0
         self._weight[which] = 0.0
         self._locked[which] = False
 
@@ -86,10 +104,11 @@ class FootLock:
         return self._ankle
 
     def __call__(self, rotations: np.ndarray, root_positions: np.ndarray,
-                 input_ankles: np.ndarray) -> np.ndarray:
-        """Local rotations ``(P, J, 4)`` of the output frame with the legs of planted feet locked
-        (a new array); ``input_ankles`` ``(P, 2, 3)``: world positions of the input's ankles
-        (:attr:`ankles`) in the frame the output was made from."""
+                 input_ankles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The output frame with the legs of planted feet locked: local rotations ``(P, J, 4)``
+        and root positions ``(P, 3)`` (new arrays; the root moves only by ``anchor_root``);
+        ``input_ankles`` ``(P, 2, 3)``: world positions of the input's ankles (:attr:`ankles`) in
+        the frame the output was made from."""
         sk = self.skeleton
         positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
         positions[:, sk.pelvis] = root_positions
@@ -108,6 +127,7 @@ class FootLock:
         self._target += np.where(glide[..., None], self._glide[..., None] * step, 0.0)  # finite where gliding
         self._glide = np.where(start, GLIDE, self._glide * GLIDE)
         self._target[start] = ankle[start]
+        self._landed[start] = input_ankles[start]
         parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
         toes = rot.rotate(g_foot, self._toes)
         heading = np.arctan2(toes[..., 0], toes[..., 2])
@@ -115,6 +135,14 @@ class FootLock:
         # the leash: a held ankle at most max_stretch from the stylizer's
         away = ankle - self._target
         reach = rot.norm(away, keepdims=True)
+        root = np.array(root_positions, dtype=np.float64)
+        if self.anchor_root:
+            shift = self._anchor(away - (input_ankles - self._landed), ankle, root)
+            root += shift
+            hip, knee, ankle = hip + shift[:, None], knee + shift[:, None], ankle + shift[:, None]
+            away = away + shift[:, None]
+            reach = rot.norm(away, keepdims=True)
+        self._last_root = root
         self._target += np.where(self._locked[..., None] & (reach > self.max_stretch),
                                  away * (1.0 - self.max_stretch / np.maximum(reach, _EPS)), 0.0)
         released = self._locked & ~contact
@@ -132,7 +160,7 @@ class FootLock:
         turn = np.where(contact, wrap_angle(self._heading - heading), fade * self._turn)
         moved = (rot.norm(goal - ankle) > _NEAR) | (np.abs(turn) > _NEAR)
         if not moved.any():
-            return rotations.copy()
+            return rotations.copy(), root
         g_upper, g_lower = self._two_bone(g_upper, g_lower, hip, knee, ankle, goal)
         g_foot = rot.multiply(rot.from_yaw(turn), g_foot)
         # local = parent's world^-1 * world, for upper leg, lower leg and foot in one call
@@ -140,7 +168,24 @@ class FootLock:
                              np.concatenate([g_upper, g_lower, g_foot], axis=1))
         out = rotations.copy()
         out[:, self._chain] = np.where(np.tile(moved, 3)[..., None], local, out[:, self._chain])
-        return out
+        return out, root
+
+    def _anchor(self, ahead: np.ndarray, ankle: np.ndarray, root: np.ndarray) -> np.ndarray:
+        """``(P, 3)``: how far to move each root back along its own step of this frame (at most
+        the whole step) so that no held ankle whose stylized foot is down has run more than
+        ``anchor_stretch`` further since it landed than the input's ankle (``ahead``, ``(P, 2, 3)``)."""
+        reach = rot.norm(ahead, keepdims=True)
+        down = self._locked & (reach[..., 0] > self.anchor_stretch) & (ankle[..., 1] < self._height + DOWN)
+        step = np.nan_to_num(root - self._last_root)  # NaN on a first frame: no step to hold back
+        step[:, 1] = 0.0
+        length = rot.norm(step, keepdims=True)
+        forward = step / np.maximum(length, _EPS)
+        beyond = ahead * (1.0 - self.anchor_stretch / np.maximum(reach, _EPS))
+        excess = np.add.reduce(beyond * forward[:, None], axis=-1)  # how far along the step
+        want = np.where(down, excess, 0.0).max(axis=1, initial=0.0)
+        # eased in and out, so the root's speed changes smoothly (the IK holds the foot meanwhile)
+        self._back = np.minimum(self._back + ANCHOR_EASE * (want - self._back), length[:, 0])
+        return -forward * self._back[:, None]
 
     def _two_bone(self, g_upper, g_lower, hip, knee, ankle, goal):
         """World rotations of upper and lower leg that put the ankle at ``goal`` (as near as the

@@ -257,13 +257,19 @@ class RecurrentSession:
         self._state = out["state_out"]
         self._fresh[:] = False
         output = out["output"] if self._standing is None else self._standing(out["output"], features)
-        frame = self._decoder(output)
+        frame = self._placed(self._decoder(output), self._encoder.positions[:, self._ankle_joints])
+        self._outputs = [*self._outputs[-1:], (t, frame[0], frame[1] + lift)]
+
+    def _placed(self, frame: tuple[np.ndarray, np.ndarray], ankles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A decoded frame with its feet locked on the input's ``ankles`` (an anchored root stays
+        where the lock held it) and the trajectory pulled towards the input's (``follow_seconds``)."""
         if self._foot_lock is not None:
-            ankles = self._encoder.positions[:, self._ankle_joints]
-            frame = self._foot_lock(*frame, ankles), frame[1]
+            locked = self._foot_lock(*frame, ankles)
+            self._decoder.move(locked[1] - frame[1])
+            frame = locked
         if self._follow_gain:
             self._decoder.pull(*self._encoder.facing(), self._follow_gain)
-        self._outputs = [*self._outputs[-1:], (t, frame[0], frame[1] + lift)]
+        return frame
 
     def _output(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The model's output at stream time ``t``, between its last two frames (held outside)."""

@@ -242,12 +242,7 @@ class WindowedSession(RecurrentSession):
             frames = self._standing(frames, self._history[np.arange(self.performers), due - n - 1])
         self._fresh[:] = False
         self._n += 1
-        frame = self._decoder(frames)
-        if self._foot_lock is not None:
-            ankles = self._ankles[np.arange(self.performers), slot]
-            frame = self._foot_lock(*frame, ankles), frame[1]
-        if self._follow_gain:
-            self._decoder.pull(*self._encoder.facing(), self._follow_gain)
+        frame = self._placed(self._decoder(frames), self._ankles[np.arange(self.performers), slot])
         shown_lift = self._lifts[np.arange(self.performers), slot]  # the lift of the frame emitted
         self._outputs = [*self._outputs[-1:], (t - lookahead / self.fps, frame[0], frame[1] + shown_lift)]
 
