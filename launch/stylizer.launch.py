@@ -28,6 +28,7 @@ STYLIZER_ARGUMENTS = {
     'target_style': ('target_style', str, 'style to perform, one of the model card\'s styles'),
     'alpha': ('alpha', float, 'style intensity, 0 (the input) .. 1'),
     'latent_seed': ('latent_seed', int, 'stgcn: latent seed (variation within a style)'),
+    'seed_spread': ('seed_spread', float, 'stgcn: how much seeds differ, 0 .. 4 (1: as trained)'),
     'reference': ('reference', str, 'stgcn: a BVH clip whose style to move in'),
     'performers': ('performers', yaml.safe_load,
                    'topic prefixes, one per performer, e.g. "[alice, bob]"'),

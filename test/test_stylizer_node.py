@@ -258,6 +258,8 @@ def test_parameters_change_live_and_bad_values_are_rejected(rig, recorded, model
         ("latent_seed", 2.5, "latent_seed must be of type integer, got double 2.5"),
         ("mix_weight", -0.1, "Min: 0.0, Max: 1.0"),
         ("latent_seed", -1, "latent_seed out of range"),
+        ("seed_spread", 5.0, "seed_spread out of range"),
+        ("seed_spread", "wide", "seed_spread must be of type double, got string 'wide'"),
         ("model", "other.onnx", "read-only"),
     ]
     for name, value, reason in rejected:

@@ -77,6 +77,11 @@ def node(model, ros_env, tmp_path_factory):
     print(log.read_text())  # shown by pytest when a test fails
 
 
+def SEEDED(session):
+    """What the node's ``latent_seed: 7`` and ``seed_spread: 2.0`` do to a session."""
+    session.set_seed(7, spread=2.0)
+
+
 def offline(model, frames, controls=None):
     """What a fresh session with the node's settings makes of ``frames`` (JointState positions);
     ``controls[k](session)`` runs before frame k."""
@@ -94,11 +99,11 @@ def test_frames_are_stylized_as_offline_and_the_seed_changes_live(node, model, f
     assert stamps(got).tolist() == [s for s, _ in frames[:120]]
     assert difference([m.position for m in got], offline(model, frames[:120])) < 1e-5
 
-    (result,) = set_parameters(latent_seed=7)
-    assert result.successful, result.reason
+    (seed, spread) = set_parameters(latent_seed=7, seed_spread=2.0)
+    assert seed.successful and spread.successful, (seed.reason, spread.reason)
     send(frames[120:240])
     out = np.array([m.position for m in got])
-    seeded = offline(model, frames[:240], {120: lambda s: s.set_seed(7)})
+    seeded = offline(model, frames[:240], {120: SEEDED})
     assert difference(out, seeded) < 1e-5
     assert difference(out[130:], offline(model, frames[:240])[130:]) > 1e-4  # the seed took effect
 
@@ -123,7 +128,7 @@ def test_reference_clips_are_read_checked_and_used(node, model, frames, datasets
         session.set_style("elderly")
         session.set_reference(clip, "elderly")
 
-    expected = offline(model, frames, {120: lambda s: s.set_seed(7), 240: reference})
+    expected = offline(model, frames, {120: SEEDED, 240: reference})
     out = np.array([m.position for m in got])
     assert difference(out, expected) < 1e-5  # the rejected clips changed nothing
-    assert difference(out[250:], offline(model, frames, {120: lambda s: s.set_seed(7)})[250:]) > 1e-4
+    assert difference(out[250:], offline(model, frames, {120: SEEDED})[250:]) > 1e-4

@@ -137,6 +137,31 @@ def test_latent_seeds_are_deterministic_and_diverse(random_model, walk):
         b.set_seed(3, mix_seed=4, mix_weight=2.0)
 
 
+def test_the_seed_spread_scales_the_seeds_codes_about_their_styles_mean(random_model):
+    session = WindowedSession(random_model, window=16, lookahead=8, blend_seconds=0.0)
+    size = int(session.card["latent_dim"])
+    trained = {seed: session.mapping.run(z=np.repeat(latent(seed, size)[None], len(STYLES), 0).astype(np.float32),
+                                         style=np.eye(len(STYLES), dtype=np.float32))["code"]
+               for seed in (3, 4)}
+    codes = {}
+    for spread in (0.0, 1.0, 2.0):
+        for seed in (3, 4):
+            session.set_seed(seed, spread=spread)
+            codes[spread, seed] = session.codes()
+    assert np.allclose(codes[1.0, 3], trained[3], atol=1e-6)  # 1: the mapping network's codes
+    assert np.allclose(codes[0.0, 3], codes[0.0, 4])  # 0: every seed gets its style's mean code
+    mean = codes[0.0, 3]
+    assert np.allclose(codes[2.0, 3] - mean, 2.0 * (codes[1.0, 3] - mean))
+    assert session.seed_spread == 2.0  # a spread given once stays for later seeds
+    session.set_seed(3)
+    assert np.allclose(session.codes(), codes[2.0, 3])
+    for bad in (-0.5, 4.5, "wide", True, float("nan")):
+        with pytest.raises(MotionStyleError, match="seed spread must be a number from 0 to 4"):
+            session.set_seed(3, spread=bad)
+    with pytest.raises(MotionStyleError, match="seed spread"):
+        WindowedSession(random_model, window=16, lookahead=8, seed_spread=-1.0)
+
+
 def test_alpha_zero_uses_the_windows_own_code(random_model, walk):
     clip = walk[:64]
     session = WindowedSession(random_model, window=16, lookahead=8)
@@ -192,6 +217,11 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
     assert windowed.alpha_zero_error([(walk, "elderly")], identity_model)["joint_distance_m"] < 3e-3
     spread = windowed.diversity([walk[:48]], ["elderly", "active"], random_model, seeds=(0, 1))
     assert spread["between_seeds_m"] > 0 and spread["between_styles_m"] > 0
+    rows = windowed.seed_spread_costs([(walk[:48], "elderly")], [walk[:48]], ["elderly", "active"],
+                                      random_model, spreads=(0.0, 2.0))
+    assert [r["seed_spread"] for r in rows] == [0.0, 2.0]
+    assert rows[0]["between_seeds_m"] == 0.0 < rows[1]["between_seeds_m"]  # 0: one code per style
+    assert rows[1]["between_seeds_m"] > spread["between_seeds_m"] and 0 <= rows[1]["style_accuracy"] <= 1
     report, figures = windowed.bench_report(walk[:40], random_model, hops=(1, 8), lookahead=8)
     assert "one window, 8 performer(s)" in report and "hop 8:" in report
     amortised = figures["per_frame_amortised_ms"]

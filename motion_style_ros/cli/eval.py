@@ -38,6 +38,9 @@ def add_parser(subparsers):
                    help="instead: stylize the CMU and Xia neutral clips (other rigs and studios, "
                         "retargeted) into every style and check for NaN, joint flips, foot skating "
                         "against the input's and bone lengths; writes unseen.json and pictures")
+    p.add_argument("--seed-spread", type=float, default=None, metavar="S",
+                   help="stgcn: seeds' codes spread S times as far from their style's mean code "
+                        "(default: 1, as trained); --record writes it as eval_seed_spread_S")
     p.add_argument("--reference-codes", action="store_true",
                    help="stgcn: take each pair's style code from a test take of the target style "
                         "and another content (through the style encoder) instead of a latent seed; "
@@ -63,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
 
         raise MotionStyleError("--reference-codes scores the windowed stylizer: give --stylizer stgcn")
     # Build the stylizers first: a missing model fails here in one line, before the slow part.
-    stylizers = {name: stylizer(name, args.model, args.alpha, args.threads) for name in names}
+    stylizers = {name: stylizer(name, args.model, args.alpha, args.threads, args.seed_spread)
+                 for name in names}
     if args.unseen:
         return run_unseen(args, stylizers)
     if args.controls:
@@ -77,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
                                                  args.seed)}
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
     stylizers.update(harness.baselines(clips, args.seed))
-    settings = {"pairs_per_cell": args.pairs_per_cell, "seed": args.seed, "alpha": args.alpha}
+    settings = {"pairs_per_cell": args.pairs_per_cell, "seed": args.seed, "alpha": args.alpha,
+                **({} if args.seed_spread is None else {"seed_spread": args.seed_spread})}
     report = harness.evaluate(stylizers, clips, pairs, *judges, progress=not args.quiet,
                               settings=settings)
     model = names[0] if names else None
@@ -87,7 +92,9 @@ def run(args: argparse.Namespace) -> int:
         summary = {name: {**system["overall"], "fmd_per_style": {
                        s: v["fmd"] for s, v in system["per_style"].items()}}
                    for name, system in report["systems"].items()}
-        _record(args, "eval_reference_codes" if args.reference_codes else "eval",
+        key = ("eval_reference_codes" if args.reference_codes else "eval" if args.seed_spread is None
+               else f"eval_seed_spread_{args.seed_spread:g}")
+        _record(args, key,
                 {"settings": report["settings"], "systems": summary})
     for name, system in report["systems"].items():
         if system["skipped"]:
@@ -149,9 +156,12 @@ def run_controls(args: argparse.Namespace) -> int:
         "lookahead_costs": {"pairs": f"{len(pairs)} test takes, one per (content, style), each into "
                                      "the next style; hop 4 (lookahead 0: hop 1)",
                             "rows": windowed.lookahead_costs(pairs, model)},
-        "diversity": {**windowed.diversity(sources, ["elderly", "youthful", "exhausted"], model),
+        "diversity": {**windowed.diversity(sources, DIVERSITY_STYLES, model),
                       "meaning": "mean pelvis-relative joint distance between outputs of one source "
                                  "under two latent seeds vs under two styles"},
+        "seed_spread": {"pairs": f"style accuracy on the same {len(pairs)} takes under seeds 0 and 1; "
+                                 "diversity as above",
+                        "rows": windowed.seed_spread_costs(pairs, sources, DIVERSITY_STYLES, model)},
         "alpha_zero": {**windowed.alpha_zero_error(pairs, model),
                        "meaning": "alpha 0 (the source's own style code) against the source: mean "
                                   "pelvis-relative joint distance and local rotation angle"},
@@ -159,6 +169,8 @@ def run_controls(args: argparse.Namespace) -> int:
     for row in report["lookahead_costs"]["rows"]:
         print("lookahead " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items() if k != "lookahead")
               + f" (lookahead {row['lookahead']})")
+    for row in report["seed_spread"]["rows"]:
+        print("seed spread " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items()))
     for key in ("diversity", "alpha_zero"):
         print(f"{key}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report[key].items() if k != "meaning"))
     out = Path(args.out)
@@ -169,6 +181,9 @@ def run_controls(args: argparse.Namespace) -> int:
         for key, metrics in report.items():
             _record(args, key, metrics)
     return 0
+
+
+DIVERSITY_STYLES = ["elderly", "youthful", "exhausted"]
 
 
 def _record(args: argparse.Namespace, key: str, metrics: dict) -> None:

@@ -24,6 +24,8 @@ def add_parser(subparsers) -> None:
                         "the target style is the one the encoder recognises, unless --style names it)")
     p.add_argument("--seed", type=int, default=0,
                    help="stgcn backend: latent seed of the style codes (default: 0)")
+    p.add_argument("--seed-spread", type=float, default=1.0, metavar="S",
+                   help="stgcn backend: how much seeds differ, 0 to 4 (default: 1, as trained)")
     p.add_argument("--alpha", type=float, default=1.0, help="style strength in [0, 1] (default: 1)")
     p.add_argument("--backend", default="recurrent", help="stylizer backend (default: recurrent)")
     p.add_argument("--model", default=None, help="model file (default: the backend's shipped model)")
@@ -42,9 +44,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
         raise MotionStyleError(f"{args.render}: --render must end in .png or .gif")
-    if args.backend != "stgcn" and (args.reference or args.seed):
-        raise MotionStyleError(f"--reference and --seed need --backend stgcn (the {args.backend} "
-                               "backend has no style codes)")
+    if args.backend != "stgcn" and (args.reference or args.seed or args.seed_spread != 1.0):
+        raise MotionStyleError(f"--reference, --seed and --seed-spread need --backend stgcn (the "
+                               f"{args.backend} backend has no style codes)")
     if not args.style and not args.reference:
         raise MotionStyleError("give a target --style (or, with --backend stgcn, a --reference clip)")
     source = canonical_clip(args.input)
@@ -53,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
 
         reference = canonical_clip(args.reference) if args.reference else None
         stylize, recognised = windowed(args.model, args.alpha, args.threads, args.seed, reference,
-                                       (args.style or [None])[0])
+                                       (args.style or [None])[0], args.seed_spread)
         if reference is not None:
             print(f"{args.reference}: style code read as {recognised!r}")
             args.style = args.style or [recognised]

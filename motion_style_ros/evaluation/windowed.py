@@ -20,6 +20,7 @@ from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession
 
 LOOKAHEADS = (0, 8, 16, 32)
+SPREADS = (1.0, 2.0, 2.5, 3.0)
 
 
 def window_times(model: str | Path = DEFAULT_MODEL, performers: int = 1, repeats: int = 200,
@@ -132,12 +133,13 @@ def lookahead_costs(pairs: list[tuple[Motion, str]], model: str | Path = DEFAULT
 
 
 def diversity(sources: list[Motion], styles: list[str], model: str | Path = DEFAULT_MODEL,
-              seeds: tuple[int, ...] = (0, 1, 2, 3)) -> dict:
+              seeds: tuple[int, ...] = (0, 1, 2, 3), spread: float = 1.0) -> dict:
     """Mean pelvis-relative joint distance (m) between outputs of one source and style under two
-    seeds, against the distance between outputs of one source and seed under two styles."""
+    seeds, against the distance between outputs of one source and seed under two styles (at
+    seed spread ``spread``)."""
     outs = {}
     for seed in seeds:
-        session = WindowedSession(model, latent_seed=seed)
+        session = WindowedSession(model, latent_seed=seed, seed_spread=spread)
         for i, source in enumerate(sources):
             for style in styles:
                 outs[i, style, seed] = _local(session.run(source, style))
@@ -151,6 +153,27 @@ def diversity(sources: list[Motion], styles: list[str], model: str | Path = DEFA
     return {"between_seeds_m": round(mean_distance(between_seeds), 4),
             "between_styles_m": round(mean_distance(between_styles), 4),
             "seeds": list(seeds), "styles": list(styles), "sources": len(sources)}
+
+
+def seed_spread_costs(pairs: list[tuple[Motion, str]], sources: list[Motion], styles: list[str],
+                      model: str | Path = DEFAULT_MODEL, spreads: tuple[float, ...] = SPREADS,
+                      judge: Judge | None = None) -> list[dict]:
+    """One row per seed spread: the seeds' :func:`diversity` on ``sources`` into ``styles``, and
+    the style judge's accuracy on ``pairs`` under seeds 0 and 1 (what more diverse seeds cost)."""
+    judge = judge or Judge("style")
+    rows = []
+    for spread in spreads:
+        outs, wanted = [], []
+        for seed in (0, 1):
+            session = WindowedSession(model, latent_seed=seed, seed_spread=spread)
+            outs += [session.run(source, style) for source, style in pairs]
+            wanted += [style for _, style in pairs]
+        labels = judge.judge(outs).labels
+        spread_div = diversity(sources, styles, model, spread=spread)
+        rows.append({"seed_spread": spread, "between_seeds_m": spread_div["between_seeds_m"],
+                     "between_styles_m": spread_div["between_styles_m"],
+                     "style_accuracy": round(float(np.mean([a == b for a, b in zip(labels, wanted)])), 3)})
+    return rows
 
 
 def alpha_zero_error(sources: list[tuple[Motion, str]], model: str | Path = DEFAULT_MODEL) -> dict:

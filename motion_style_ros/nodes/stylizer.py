@@ -36,7 +36,7 @@ from motion_style_ros.io.joint_state import JointStateLayout, to_ros
 from motion_style_ros.nodes import PlayerNode, joint_state, run
 from motion_style_ros.runtime.offline import canonical_clip, default_model
 from motion_style_ros.runtime.session import RecurrentSession
-from motion_style_ros.runtime.windowed import WindowedSession
+from motion_style_ros.runtime.windowed import MAX_SPREAD, WindowedSession
 
 NAME = "stylizer"
 BACKENDS = ("recurrent", "stgcn")  # Style-ERD frame by frame; ST-GCN windows blended by overlap-add
@@ -46,7 +46,7 @@ DROP_REASONS = ("mismatched_lengths", "non_finite", "bad_names", "duplicate_stam
 # Parameters that change live, with their types (checked by the node: rclpy's own message would
 # name the types by number).
 DYNAMIC = {"target_style": str, "alpha": float, "mix_style": str, "mix_weight": float,
-           "latent_seed": int, "reference": str, "frame_id": str}
+           "latent_seed": int, "seed_spread": float, "reference": str, "frame_id": str}
 TYPE_NAMES = {str: "string", float: "double", int: "integer", bool: "bool", list: "array",
               type(None): "nothing (not set)"}
 WARN_EVERY = 10.0  # s between two warnings of the same kind
@@ -182,6 +182,10 @@ class Stylizer(PlayerNode):
                                       "seed, the same codes on every machine); the recurrent "
                                       "backend has no latent space and ignores it", 0, 2**31 - 1,
                                       read_only=False),
+            "seed_spread": self.param("seed_spread", 1.0, "stgcn: how far the seeds' codes lie from "
+                                      "their style's mean code: 1 = as trained, 0 = one code per "
+                                      "style, more = seeds differ more (the style less surely)",
+                                      0.0, MAX_SPREAD, read_only=False),
             "reference": self.param("reference", "", "stgcn: a BVH clip whose style code (style "
                                     "encoder) replaces the target style's: move like this "
                                     "recording; '' = the latent seed's code", read_only=False),
@@ -256,8 +260,9 @@ class Stylizer(PlayerNode):
                 p.session.set_mix(settings["mix_style"] or None, settings["mix_weight"])
             if self.backend != "stgcn":
                 continue
-            if "latent_seed" in changes or ("reference" in changes and not settings["reference"]):
-                p.session.set_seed(settings["latent_seed"])
+            if {"latent_seed", "seed_spread"} & changes.keys() or (
+                    "reference" in changes and not settings["reference"]):
+                p.session.set_seed(settings["latent_seed"], spread=settings["seed_spread"])
             if reference is not None:
                 p.session.set_reference(reference, settings["target_style"])
 
@@ -405,7 +410,7 @@ class Stylizer(PlayerNode):
                   "latency_p99_ms": f"{p99:.3f}", "model": str(p.session.model.path),
                   "backend": self.backend, "input": p.input,
                   **{k: self.settings[k] for k in ("target_style", "alpha", "mix_style", "mix_weight",
-                                              "latent_seed", "reference")}}
+                                              "latent_seed", "seed_spread", "reference")}}
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if dropped > p.reported_drops else DiagnosticStatus.OK,
             name=f"{self.get_name()}: {p.input}",

@@ -62,13 +62,14 @@ def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1) ->
                                                   threads=threads), alpha)
 
 
-def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
+def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1, seed_spread: float = 1.0) -> Stylizer:
     """The windowed ST-GCN session: latent seed 0, the default window, hop and lookahead."""
-    return windowed(model, alpha, threads)[0]
+    return windowed(model, alpha, threads, seed_spread=seed_spread)[0]
 
 
 def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, seed: int = 0,
-             reference: "Motion | None" = None, style: str | None = None) -> tuple[Stylizer, str | None]:
+             reference: "Motion | None" = None, style: str | None = None,
+             seed_spread: float = 1.0) -> tuple[Stylizer, str | None]:
     """The windowed ST-GCN session with a latent seed, or with a reference clip's style code (read
     by ``style``'s head, by default the style the encoder recognises); the stylizer, and the
     reference's style."""
@@ -78,7 +79,7 @@ def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, see
 
     def make(fps: float | None) -> WindowedSession:
         session = WindowedSession(model or default_model("stgcn"), input_fps=fps, threads=threads,
-                                  latent_seed=seed)
+                                  latent_seed=seed, seed_spread=seed_spread)
         if reference is not None:
             recognised.append(session.set_reference(reference, style))
         return session
@@ -90,9 +91,15 @@ def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, see
 STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent, "stgcn": stgcn}
 
 
-def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
+def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1,
+             seed_spread: float | None = None) -> Stylizer:
+    """A backend's offline stylizer; ``seed_spread`` (stgcn only): see ``WindowedSession``."""
     from motion_style_ros.errors import MotionStyleError
 
     if backend not in STYLIZERS:
         raise MotionStyleError(f"unknown backend {backend!r}; choose one of {', '.join(STYLIZERS)}")
-    return STYLIZERS[backend](model=model, alpha=alpha, threads=threads)
+    if seed_spread is None:
+        return STYLIZERS[backend](model=model, alpha=alpha, threads=threads)
+    if backend != "stgcn":
+        raise MotionStyleError(f"a seed spread needs backend stgcn (latent seeds); {backend} has none")
+    return stgcn(model=model, alpha=alpha, threads=threads, seed_spread=seed_spread)

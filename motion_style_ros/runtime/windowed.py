@@ -22,6 +22,10 @@ differs:
   mixed by the style weights (style and mix), then moved from the window's own style code (the
   style encoder on the input window) towards it by alpha: alpha 0 reproduces the input. Seed and
   reference changes blend over ``blend_seconds`` like style and alpha.
+- **Seed spread.** A seed's code is moved away from (or towards) its style's mean code, the mean
+  over :data:`MEAN_SEEDS` fixed seeds, by ``seed_spread`` (StyleGAN's truncation trick, read the
+  other way): 1 is the mapping network's code as trained, 0 gives every seed the style's mean
+  code, above 1 the seeds differ more, at some cost in how surely the style is recognised.
 - **Foot locking.** With ``foot_lock`` (the default), feet the input plants stay planted in the
   output (:mod:`motion_style_ros.core.foot_lock`), judged on the input frame each output frame
   was made from.
@@ -45,6 +49,8 @@ from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.session import RecurrentSession, _check_card
 
 DEFAULT_MODEL = "stgcn.onnx"
+MEAN_SEEDS = range(1_000_000, 1_000_064)  # the seeds whose codes average to a style's mean code
+MAX_SPREAD = 4.0
 
 
 def latent(seed: int, size: int) -> np.ndarray:
@@ -63,6 +69,14 @@ def _seed(seed: int) -> int:
     if isinstance(seed, bool) or not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2**63):
         raise MotionStyleError(f"latent seed must be a whole number from 0 to 2^63 - 1, got {seed!r}")
     return int(seed)
+
+
+def _spread(value: float) -> float:
+    if isinstance(value, bool) or not (isinstance(value, (int, float, np.number)) and
+                                       0.0 <= value <= MAX_SPREAD):
+        raise MotionStyleError(f"seed spread must be a number from 0 to {MAX_SPREAD:g} "
+                               f"(1 = the codes as trained), got {value!r}")
+    return float(value)
 
 
 def _softmax(x: np.ndarray) -> np.ndarray:
@@ -95,6 +109,7 @@ class WindowedSession(RecurrentSession):
         latent_seed: int = 0,
         foot_lock: bool = True,
         ground: bool = True,
+        seed_spread: float = 1.0,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -115,6 +130,8 @@ class WindowedSession(RecurrentSession):
                            foot_lock, ground, delay_frames=self.lookahead)
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
+        self.seed_spread = _spread(seed_spread)
+        self._mean_codes = np.mean([self._mapped(seed) for seed in MEAN_SEEDS], axis=0)
         # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
         self._codes_to = np.repeat(self._seed_codes(latent_seed)[None], self.performers, axis=0)
         self._codes_from = self._codes_to.copy()
@@ -124,10 +141,13 @@ class WindowedSession(RecurrentSession):
     # --- controls ---------------------------------------------------------------------------
 
     def set_seed(self, latent_seed: int, performer: int | None = None, mix_seed: int | None = None,
-                 mix_weight: float = 0.0) -> None:
+                 mix_weight: float = 0.0, spread: float | None = None) -> None:
         """Every style's code from the mapping network and this seed (mixed with ``mix_seed``'s
-        codes by ``mix_weight`` in [0, 1]); drops a reference. Blends over ``blend_seconds``."""
+        codes by ``mix_weight`` in [0, 1]), at ``spread`` (default: the session's ``seed_spread``,
+        which a value given here replaces); drops a reference. Blends over ``blend_seconds``."""
         which = self._controls.which(performer)
+        if spread is not None:
+            self.seed_spread = _spread(spread)
         codes = self._seed_codes(latent_seed)
         if mix_seed is not None:
             w = unit_interval(mix_weight, "seed mix weight")
@@ -249,7 +269,11 @@ class WindowedSession(RecurrentSession):
     # --- codes --------------------------------------------------------------------------------
 
     def _seed_codes(self, seed: int) -> np.ndarray:
-        """``(S, D)``: every style's code for one seed."""
+        """``(S, D)``: every style's code for one seed, at the session's seed spread."""
+        return self._mean_codes + self.seed_spread * (self._mapped(seed) - self._mean_codes)
+
+    def _mapped(self, seed: int) -> np.ndarray:
+        """``(S, D)``: every style's code for one seed from the mapping network, as trained."""
         n = len(self.styles)
         z = np.repeat(latent(seed, int(self.card["latent_dim"]))[None], n, axis=0).astype(np.float32)
         return self.mapping.run(z=z, style=np.eye(n, dtype=np.float32))["code"].astype(np.float64)
