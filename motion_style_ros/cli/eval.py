@@ -156,12 +156,13 @@ def run_controls(args: argparse.Namespace) -> int:
         "lookahead_costs": {"pairs": f"{len(pairs)} test takes, one per (content, style), each into "
                                      "the next style; hop 4 (lookahead 0: hop 1)",
                             "rows": windowed.lookahead_costs(pairs, model)},
-        "diversity": {**windowed.diversity(sources, DIVERSITY_STYLES, model),
+        "diversity": {**windowed.diversity(sources, windowed.DIVERSITY_STYLES, model),
                       "meaning": "mean pelvis-relative joint distance between outputs of one source "
                                  "under two latent seeds vs under two styles"},
         "seed_spread": {"pairs": f"style accuracy on the same {len(pairs)} takes under seeds 0 and 1; "
                                  "diversity as above",
-                        "rows": windowed.seed_spread_costs(pairs, sources, DIVERSITY_STYLES, model)},
+                        "rows": windowed.seed_spread_costs(pairs, sources, windowed.DIVERSITY_STYLES,
+                                                           model)},
         "alpha_zero": {**windowed.alpha_zero_error(pairs, model),
                        "meaning": "alpha 0 (the source's own style code) against the source: mean "
                                   "pelvis-relative joint distance and local rotation angle"},
@@ -181,9 +182,6 @@ def run_controls(args: argparse.Namespace) -> int:
         for key, metrics in report.items():
             _record(args, key, metrics)
     return 0
-
-
-DIVERSITY_STYLES = ["elderly", "youthful", "exhausted"]
 
 
 def _record(args: argparse.Namespace, key: str, metrics: dict) -> None:

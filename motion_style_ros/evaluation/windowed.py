@@ -21,6 +21,7 @@ from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession
 
 LOOKAHEADS = (0, 8, 16, 32)
 SPREADS = (1.0, 2.0, 2.5, 3.0)
+DIVERSITY_STYLES = ["elderly", "youthful", "exhausted"]  # styles the seeds' diversity is measured in
 
 
 def window_times(model: str | Path = DEFAULT_MODEL, performers: int = 1, repeats: int = 200,

@@ -62,7 +62,8 @@ def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1) ->
                                                   threads=threads), alpha)
 
 
-def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1, seed_spread: float = 1.0) -> Stylizer:
+def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1,
+          seed_spread: float = 1.0) -> Stylizer:
     """The windowed ST-GCN session: latent seed 0, the default window, hop and lookahead."""
     return windowed(model, alpha, threads, seed_spread=seed_spread)[0]
 
