@@ -260,7 +260,8 @@ class RecurrentSession:
         frame = self._placed(self._decoder(output), self._encoder.positions[:, self._ankle_joints])
         self._outputs = [*self._outputs[-1:], (t, frame[0], frame[1] + lift)]
 
-    def _placed(self, frame: tuple[np.ndarray, np.ndarray], ankles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _placed(self, frame: tuple[np.ndarray, np.ndarray], ankles: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
         """A decoded frame with its feet locked on the input's ``ankles`` (an anchored root stays
         where the lock held it) and the trajectory pulled towards the input's (``follow_seconds``)."""
         if self._foot_lock is not None:

@@ -131,7 +131,7 @@ class WindowedSession(RecurrentSession):
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
         self.seed_spread = _spread(seed_spread)
-        self._mean_codes = np.mean([self._mapped(seed) for seed in MEAN_SEEDS], axis=0)
+        self._mean_codes = self._mapped(*MEAN_SEEDS).mean(axis=0)
         # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
         self._codes_to = np.repeat(self._seed_codes(latent_seed)[None], self.performers, axis=0)
         self._codes_from = self._codes_to.copy()
@@ -270,13 +270,15 @@ class WindowedSession(RecurrentSession):
 
     def _seed_codes(self, seed: int) -> np.ndarray:
         """``(S, D)``: every style's code for one seed, at the session's seed spread."""
-        return self._mean_codes + self.seed_spread * (self._mapped(seed) - self._mean_codes)
+        return self._mean_codes + self.seed_spread * (self._mapped(seed)[0] - self._mean_codes)
 
-    def _mapped(self, seed: int) -> np.ndarray:
-        """``(S, D)``: every style's code for one seed from the mapping network, as trained."""
-        n = len(self.styles)
-        z = np.repeat(latent(seed, int(self.card["latent_dim"]))[None], n, axis=0).astype(np.float32)
-        return self.mapping.run(z=z, style=np.eye(n, dtype=np.float32))["code"].astype(np.float64)
+    def _mapped(self, *seeds: int) -> np.ndarray:
+        """``(K, S, D)``: every style's code for each seed from the mapping network, as trained
+        (one run for all of them)."""
+        n, size = len(self.styles), int(self.card["latent_dim"])
+        z = np.repeat(np.stack([latent(seed, size) for seed in seeds]), n, axis=0).astype(np.float32)
+        style = np.tile(np.eye(n, dtype=np.float32), (len(seeds), 1))
+        return self.mapping.run(z=z, style=style)["code"].astype(np.float64).reshape(len(seeds), n, -1)
 
     def _current_codes(self) -> np.ndarray:
         w = smoothstep(self._code_progress)[:, None, None]
