@@ -20,10 +20,12 @@ TIMEOUT = 60.0  # generous bound for readiness on a loaded machine; never a timi
 BEST_EFFORT = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
-def start_node(name, env, log=None, **params):
-    """``python -m motion_style_ros.nodes.<name> --ros-args -p key:=value ...`` as a process;
-    its output goes to the file ``log`` if given, else to pipes."""
+def start_node(name, env, log=None, remaps=None, **params):
+    """``python -m motion_style_ros.nodes.<name> --ros-args [-r from:=to ...] -p key:=value ...``
+    as a process; its output goes to the file ``log`` if given, else to pipes."""
     cmd = [sys.executable, "-m", f"motion_style_ros.nodes.{name}", "--ros-args"]
+    for old, new in (remaps or {}).items():
+        cmd += ["-r", f"{old}:={new}"]
     for key, value in params.items():
         cmd += ["-p", f"{key}:={value}"]
     if log is None:

@@ -243,6 +243,41 @@ def test_a_phase_moves_the_model_frames_to_other_input_frames(model, clips):
         RecurrentSession(model, phase_seconds=1 / 30.0)
 
 
+@pytest.mark.parametrize("rate", [120.0, 100.0, 30.0])
+def test_pipelined_outputs_are_the_same_one_input_frame_later(model, clips, rate):
+    """Pipelined, a step runs none of its own frame's model frames (those wait for catch_up or
+    the next step) and its output is the unpipelined session's of the frame before, also across a
+    style change, a reset and a gap."""
+    walk = resample(clips[1], rate)
+    stamps = np.arange(walk.n_frames) / rate
+    stamps[70:] += 1.0  # a gap: the stream restarts
+    sessions = [RecurrentSession(model, input_fps=rate, pipelined=p) for p in (False, True)]
+    ran = []
+    run = sessions[1].model.run
+    sessions[1].model.run = lambda **kw: (ran.append(True), run(**kw))[1]
+    outputs = [[], []]
+    for k in range(walk.n_frames):
+        for s in sessions:
+            if k == 30:
+                s.set_style("elderly")
+            if k == 50:
+                s.reset()
+        for s, out in zip(sessions, outputs):
+            before = len(ran)
+            out.append(s.step(walk.rotations[k], walk.positions[k, 1], stamps[k]))
+            if s.pipelined:
+                if (k - 1) % 2 == 0 and k not in (0, 70):  # caught up, not a stream's first frame
+                    assert len(ran) == before
+                if k % 2 == 0:
+                    s.catch_up()  # else the next step runs them first
+    (q, p), (q_pipe, p_pipe) = ([np.stack(x) for x in zip(*out)] for out in outputs)
+    assert sessions[1].latency == pytest.approx(sessions[0].latency + 1.0 / rate)
+    later = np.r_[0, 0:69, 70, 70:walk.n_frames - 1]  # frame k shows frame k - 1's output
+    assert np.abs(p_pipe - p[later]).max() < 1e-9
+    assert np.abs(rot.angle_between(q_pipe, q[later])).max() < 1e-6
+    assert len(ran) >= walk.n_frames * 30.0 / rate - 3  # the model frames did run, in catch_up
+
+
 def test_a_stream_on_a_higher_floor_comes_out_on_that_floor(model, clips):
     """Grounding: the same walk 10 cm higher (another rig's ankles, another floor) is stylized the
     same and stays 10 cm higher."""
@@ -378,6 +413,9 @@ def test_bench_command(model, capsys):
     largest = next(line for line in out.splitlines() if line.startswith("largest number"))
     assert int(largest.rsplit(":", 1)[1].split()[-1]) >= 0
     assert "model call alone, 1 performer, onnxruntime: p50" in out
+    paced = {line.split()[0]: line.split() for line in out.splitlines()
+             if line.split()[:1] in (["default"], ["pipelined"])}
+    assert paced["default"][1:3] == ["25.0", "ms"] and paced["pipelined"][1:3] == ["33.3", "ms"]
     # The torch generator is timed only from a checkpoint of the same model.
     assert "model call alone, 1 performer, torch" not in out
 

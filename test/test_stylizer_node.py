@@ -242,6 +242,33 @@ def test_two_performers_in_one_node_are_independent(rig, recorded, model):
     assert difference(positions(rig.states["p2"]), [e for e, _, _ in offline(model, b)]) > 1e-4
 
 
+def test_a_pipelined_node_publishes_the_same_frames_one_frame_later(model, ros_env, recorded, tmp_path):
+    """``pipelined:=true``: each frame is published before its own model frames run, so it shows
+    what the default node shows one input frame earlier."""
+    proc = start_node("stylizer", ros_env, log=tmp_path / "pipelined.log",
+                      remaps={"__node": "stylizer_pipelined"}, model=model, performers=["pipe"],
+                      input_fps=FPS, qos_reliability="reliable", qos_depth=1000, pipelined="true")
+    listener = Listener("pipelined_test")
+    try:
+        publisher = listener.node.create_publisher(JointState, "pipe/joint_states", RELIABLE)
+        got = listener.subscribe("pipe/stylized/joint_states", qos=RELIABLE)
+        output = listener.subscriptions["pipe/stylized/joint_states"]
+        listener.spin_until(lambda: publisher.get_subscription_count() and output.get_publisher_count(),
+                            "the pipelined stylizer", procs=[proc])
+        frames = recorded[:80]
+        for stamp_ns, values in frames:
+            publisher.publish(message(stamp_ns, LAYOUT.names, values))
+        listener.spin_until(lambda: len(got) >= len(frames), "every pipelined output", procs=[proc])
+        assert stamps(got).tolist() == [s for s, _ in frames]
+        unpipelined = [e for e, _, _ in offline(model, frames)]
+        assert difference(positions(got), unpipelined[:1] + unpipelined[:-1]) < 1e-5
+        assert difference(positions(got), unpipelined) > 1e-3  # it is not the unpipelined output
+    finally:
+        listener.close()
+        stop(proc)
+    print((tmp_path / "pipelined.log").read_text())
+
+
 def test_parameters_change_live_and_bad_values_are_rejected(rig, recorded, model):
     frames = recorded[:180]
     rig.send("p1", frames[:60])

@@ -111,6 +111,24 @@ def test_input_faster_than_the_model_is_resampled(identity_model, walk):
     assert session.latency == pytest.approx(8 / 30 + 1 / 30 - 1 / 120)
 
 
+def test_pipelined_windows_give_the_same_frames_one_input_frame_later(random_model, walk):
+    """A seed change between frames applies to the model frames a pipelined step left, as it
+    would have without pipelining; run() aligns the pipelined output to the input the same."""
+    clip = walk[:60]
+    sessions = [WindowedSession(random_model, window=16, lookahead=4, pipelined=p) for p in (False, True)]
+    out = [[], []]
+    for t in range(clip.n_frames):
+        for s, o in zip(sessions, out):
+            if t == 25:
+                s.set_seed(5)
+            o.append(s.step(clip.rotations[t], clip.root_positions[t], t / 30))
+    (q, p), (q_pipe, p_pipe) = ([np.stack(x) for x in zip(*o)] for o in out)
+    assert sessions[1].latency == pytest.approx(sessions[0].latency + 1 / 30)
+    assert np.abs(p_pipe[1:] - p[:-1]).max() < 1e-9 and np.abs(q_pipe[1:] - q[:-1]).max() < 1e-9
+    aligned = [s.run(clip, "elderly").global_positions() for s in sessions]
+    assert np.abs(aligned[1] - aligned[0]).max() < 1e-9
+
+
 def test_latent_seeds_are_deterministic_and_diverse(random_model, walk):
     # fixed numbers: PCG64's raw stream through Box-Muller does not depend on machine or version
     assert np.allclose(latent(0, 3), [0.9184837468, 1.609997441, 0.2418246229], atol=1e-9)

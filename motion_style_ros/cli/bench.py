@@ -69,6 +69,9 @@ def add_parser(subparsers):
                        help="the node's backend (default: recurrent)")
     nodes.add_argument("--lookahead", type=int, default=8,
                        help="stgcn: model frames each output waits for (default: 8)")
+    nodes.add_argument("--pipelined", action="store_true",
+                       help="the node's pipelined mode: each frame is published before the model "
+                            "frames it does not need run (one input frame more latency)")
     nodes.set_defaults(func=run_nodes)
     recurrent.add_argument("--model", default=DEFAULT_MODEL,
                            help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
@@ -105,6 +108,20 @@ def run_recurrent(args) -> int:
         p50, p99, worst = np.percentile(micros, [50, 99, 100])
         print(f"{n:>10} {p50:>10.0f} {p99:>10.0f} {worst:>10.0f} {micros.mean():>10.0f} "
               f"{'yes' if p99 < budget_us else 'no':>10}")
+    print(f"paced like a live stream (each frame {budget_us:.0f} us after the last), 1 performer: "
+          "step() is what each frame waits for; catch_up() runs after it, between frames")
+    columns = ("mode", "latency", "step p50", "step p99", "step max", "catch_up p99", "catch_up max")
+    print(" ".join(f"{c:>12}" for c in columns))
+    paced = {}
+    for mode in ("default", "pipelined"):
+        live, micros, between = _time_steps(path, 1, args.seconds, args.input_fps, args.threads,
+                                            paced=True, pipelined=mode == "pipelined")
+        p50, p99, worst = np.percentile(micros, [50, 99, 100])
+        late99, late = np.percentile(between, [99, 100])
+        paced[mode] = {"latency_ms": round(1000 * live.latency, 1), "step_p50_us": round(p50, 1),
+                       "step_p99_us": round(p99, 1), "catch_up_p99_us": round(late99, 1)}
+        print(f"{mode:>12} {1000 * live.latency:>9.1f} ms {p50:>9.0f} us {p99:>9.0f} us "
+              f"{worst:>9.0f} us {late99:>9.0f} us {late:>9.0f} us")
     best = _largest_real_time(path, args.seconds, args.input_fps, args.threads)
     limit = f"at least {best}" if best == MAX_PERFORMERS else str(best)
     print(f"largest number of performers stylized in real time at {args.input_fps:g} Hz "
@@ -126,7 +143,8 @@ def run_recurrent(args) -> int:
                 for n, (_, m) in results.items()}
         figures = {"command": "motion-style " + shlex.join(sys.argv[1:]), "cpus": os.cpu_count(),
                    "load_average": os.getloadavg()[0], "input_fps": args.input_fps,
-                   "step_per_performers": rows, "real_time_performers": best,
+                   "step_per_performers": rows, "paced_1_performer": paced,
+                   "real_time_performers": best,
                    "model_call_us": {k: {"p50": round(a, 1), "p99": round(b, 1)}
                                      for k, (a, b) in calls.items()}}
         print(f"recorded in {record_metrics(path, 'bench', figures)}")
@@ -210,10 +228,13 @@ def _model_calls(path, card: dict, checkpoint, threads: int, calls: int = 2000) 
     return out
 
 
-def _time_steps(path, performers: int, seconds: float, input_fps: float, threads: int):
+def _time_steps(path, performers: int, seconds: float, input_fps: float, threads: int,
+                paced: bool = False, pipelined: bool = False):
     """The session and the wall time of each of its step() calls (microseconds) over ``seconds``
     of a synthetic walk (each performer at its own phase), so that every part of a step runs:
-    features, the model, decoding and foot locking on planted feet."""
+    features, the model, decoding and foot locking on planted feet. ``paced``: each frame comes
+    when a live stream's would (the CPU's caches go cold in between), and the times of the
+    catch_up() calls after each step come back too."""
     import time
 
     import numpy as np
@@ -221,19 +242,27 @@ def _time_steps(path, performers: int, seconds: float, input_fps: float, threads
     from motion_style_ros.core.synthetic import synthetic_motion
     from motion_style_ros.runtime.session import RecurrentSession
 
-    session = RecurrentSession(path, performers, input_fps=input_fps, threads=threads)
+    session = RecurrentSession(path, performers, input_fps=input_fps, threads=threads,
+                               pipelined=pipelined)
     frames = max(2, round(seconds * input_fps))
     walks = [synthetic_motion("walk", input_fps, frames / input_fps, start=0.37 * k)
              for k in range(performers)]
     rotations = np.stack([w.rotations for w in walks], axis=1)
     roots = np.stack([w.positions[:, w.skeleton.pelvis] + [1.0 * k, 0.0, 0.0]
                       for k, w in enumerate(walks)], axis=1)
-    micros = []
+    micros, between = [], []
+    begin = time.monotonic()
     for k in range(frames):
+        if paced:
+            time.sleep(max(0.0, begin + k / input_fps - time.monotonic()))
         start = time.perf_counter_ns()
         session.step(rotations[k], roots[k], k / input_fps)
-        micros.append((time.perf_counter_ns() - start) / 1000)
-    return session, np.array(micros)
+        stepped = time.perf_counter_ns()
+        micros.append((stepped - start) / 1000)
+        if paced:
+            session.catch_up()
+            between.append((time.perf_counter_ns() - stepped) / 1000)
+    return (session, np.array(micros), np.array(between)) if paced else (session, np.array(micros))
 
 
 def _largest_real_time(path, seconds: float, input_fps: float, threads: int) -> int:
@@ -309,7 +338,7 @@ def run_nodes(args) -> int:
     path = _model(args.model or default_model(args.backend)).resolve()
     card = read_card(path)
     _print_model(path, card)
-    settings = {"backend": args.backend}
+    settings = {"backend": args.backend, "pipelined": args.pipelined}
     if args.backend == "stgcn":
         settings["lookahead"] = args.lookahead
         print(f"stgcn with lookahead {args.lookahead}: each output shows the motion of "

@@ -141,6 +141,10 @@ class Stylizer(PlayerNode):
                             "trajectory is pulled towards the input's, so the avatar stays with its "
                             "performer; 0 = free (the style's own speed and turns, drifting)",
                             0.0, 600.0)
+        pipelined = self.param("pipelined", False, "publish each frame before running the model "
+                               "frames it does not need, which then run between frames: every frame "
+                               "costs an interpolation on its way through, at one input frame more "
+                               "latency (1/input_fps)")
         if backend not in BACKENDS:
             raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
         if reliability not in RELIABILITY:
@@ -153,7 +157,7 @@ class Stylizer(PlayerNode):
         self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
         model = model or default_model(backend)
         common = dict(input_fps=input_fps or None, blend_seconds=blend, threads=threads,
-                      follow_seconds=follow or None, foot_lock=foot_lock)
+                      follow_seconds=follow or None, foot_lock=foot_lock, pipelined=pipelined)
         if backend == "stgcn":
             sessions = [WindowedSession(model, **common, window=window or None, hop=hop,
                                         lookahead=lookahead) for _ in prefixes]
@@ -301,6 +305,7 @@ class Stylizer(PlayerNode):
         self._add_point(p, stamp_ns, out, frame_id)
         if p.markers_out is not None:
             p.markers_out.publish(self._markers(p, rotations, root, msg.header.stamp))
+        p.session.catch_up()  # pipelined: the model frames of this input, now that it is sent on
 
     def _check(self, p: Performer, msg: JointState, stamp_ns: int) -> np.ndarray:
         """The message's positions, or Dropped; names are checked by the layout's decode."""

@@ -13,6 +13,13 @@ between calls:
   comes at the input's rate, evenly spaced and smooth; at rates that are not multiples of the
   model's, an output whose time is past the newest model frame holds it. Latency never exceeds
   one model frame.
+- **Pipelining.** With ``pipelined``, the output is one input frame later (``latency`` grows by
+  ``1 / input_fps``: 33.3 ms at 120 Hz input) and needs no model frame of its own input frame:
+  :meth:`~RecurrentSession.step` returns it before running them, and :meth:`~RecurrentSession.catch_up`
+  runs them once the caller has sent the output on (the next call runs them first otherwise). A
+  live node's every frame then costs an interpolation on its way through, the model's work
+  happens between frames, and the outputs are exactly those of an unpipelined session one input
+  frame later.
 - **Gaps and restarts.** A stamp more than ``gap_seconds`` after the previous one, or earlier
   than it, restarts the stream: every performer starts afresh on the next frame.
 - **Trajectory.** The model outputs the root's velocity and yaw rate in the facing frame; they are
@@ -69,8 +76,8 @@ class RecurrentSession:
     stream's nominal rate (default: the model's), which sets the output latency; ``threads``:
     ONNX Runtime threads; ``phase_seconds`` (in [0, 1 / fps)): how much later than the stream's
     start the model's clock ticks, so that sessions serving several streams in one process run
-    their model frames on different input frames rather than all on the same one; ``foot_lock``
-    and ``ground``: see the module docstring. Until :meth:`set_style`, every performer gets the
+    their model frames on different input frames rather than all on the same one; ``foot_lock``,
+    ``ground`` and ``pipelined``: see the module docstring. Until :meth:`set_style`, every performer gets the
     model's neutral style (its card's ``neutral_style``) at alpha 1.
     """
 
@@ -86,6 +93,7 @@ class RecurrentSession:
         foot_lock: bool = True,
         phase_seconds: float = 0.0,
         ground: bool = True,
+        pipelined: bool = False,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -97,7 +105,7 @@ class RecurrentSession:
                 f"{path}: not a recurrent stylizer (no inputs {', '.join(sorted(missing))})"
             )
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                           foot_lock, ground)
+                           foot_lock, ground, pipelined)
         self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
         if not (isinstance(phase_seconds, (int, float)) and 0.0 <= phase_seconds < 1.0 / self.fps):
             raise MotionStyleError(f"phase_seconds must be in [0, {1.0 / self.fps:g}), got {phase_seconds!r}")
@@ -106,10 +114,10 @@ class RecurrentSession:
 
     def _setup_stream(self, card: dict, performers: int, input_fps: float | None, blend_seconds: float,
                       gap_seconds: float, follow_seconds: float | None, foot_lock: bool, ground: bool,
-                      delay_frames: int = 0) -> None:
+                      pipelined: bool, delay_frames: int = 0) -> None:
         """Everything of the stream that does not depend on the model: rates and latency (plus
-        ``delay_frames`` model frames of the model's own), controls, feature encoder and decoder,
-        foot locking."""
+        ``delay_frames`` model frames of the model's own, and an input frame when ``pipelined``),
+        controls, feature encoder and decoder, foot locking."""
         if not (isinstance(performers, (int, np.integer)) and performers >= 1):
             raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
         self.card = card
@@ -117,7 +125,11 @@ class RecurrentSession:
         self.fps = float(card["fps"])
         self.performers = int(performers)
         self.input_fps = self.fps if input_fps is None else _positive(input_fps, "input frame rate")
-        self.latency = delay_frames / self.fps + max(0.0, 1.0 / self.fps - 1.0 / self.input_fps)
+        if not isinstance(pipelined, (bool, np.bool_)):
+            raise MotionStyleError(f"pipelined must be true or false, got {pipelined!r}")
+        self.pipelined = bool(pipelined)
+        self.latency = (delay_frames / self.fps + max(0.0, 1.0 / self.fps - 1.0 / self.input_fps)
+                        + (1.0 / self.input_fps if self.pipelined else 0.0))
         self.gap_seconds = _positive(gap_seconds, "gap time")
         self._follow_gain = (
             0.0 if follow_seconds is None
@@ -140,19 +152,23 @@ class RecurrentSession:
 
     def set_style(self, style: str, performer: int | None = None) -> None:
         """Target style of one performer or all (``None``), blended in over ``blend_seconds``."""
+        self.catch_up()
         self._controls.set_style(style, performer)
 
     def set_alpha(self, alpha: float, performer: int | None = None) -> None:
         """Strength of the style in [0, 1]; 0 is the model's neutral branch alone."""
+        self.catch_up()
         self._controls.set_alpha(alpha, performer)
 
     def set_mix(self, style: str | None, weight: float, performer: int | None = None) -> None:
         """Mix a second style in with ``weight`` in [0, 1]; ``None`` removes it."""
+        self.catch_up()
         self._controls.set_mix(style, weight, performer)
 
     def reset(self, performer: int | None = None) -> None:
         """Start one performer or all afresh at their next frame: learned initial state, the
         stylized root snapped back to the input's, controls at their targets."""
+        self.catch_up()
         which = self._controls.which(performer)
         self._fresh[which] = True
         self._encoder.reset(which)
@@ -167,9 +183,11 @@ class RecurrentSession:
         ``rotations`` ``(P, 22, 4)`` local quaternions (w, x, y, z) of the canonical skeleton,
         ``root_positions`` ``(P, 3)`` pelvis positions in metres (for one performer, ``(22, 4)``
         and ``(3,)`` work too); ``stamp`` in seconds (default: ``1 / input_fps`` after the
-        previous frame). Returns the same shapes, float64.
+        previous frame). Returns the same shapes, float64. When ``pipelined``, the frame's model
+        frames are left for :meth:`catch_up`.
         """
         q, p, single = self._check_frame(rotations, root_positions)
+        self.catch_up()
         stamp = self._check_stamp(stamp)
         if self._stamp is not None and not (0.0 <= stamp - self._stamp <= self.gap_seconds):
             self.restart()
@@ -178,17 +196,18 @@ class RecurrentSession:
             # comes phase_seconds later than it would.
             self._origin = stamp + (self._phase - 1.0 / self.fps if self._phase else 0.0)
             self.reset()
-        while (t := self._origin + self._ticks / self.fps) <= stamp + STAMP_TOLERANCE:
-            if self._stamp is None or t >= stamp - STAMP_TOLERANCE:
-                frame = q, p
-            else:
-                w = np.clip((t - self._stamp) / (stamp - self._stamp), 0.0, 1.0)
-                frame = rot.slerp(self._input[0], q, w), self._input[1] + w * (p - self._input[1])
-            self._tick(t, *frame)
-            self._ticks += 1
-        self._stamp, self._input = stamp, (q, p)
+        if self.pipelined and self._outputs:  # a stream's first frame has no model frame yet
+            self._pending = stamp, q, p
+        else:
+            self._advance(stamp, q, p)
         out_q, out_p = self._output(stamp - self.latency)
         return (out_q[0], out_p[0]) if single else (out_q, out_p)
+
+    def catch_up(self) -> None:
+        """Run the model frames that the last :meth:`step` left for later (``pipelined``)."""
+        if self._pending is not None:
+            pending, self._pending = self._pending, None
+            self._advance(*pending)
 
     def run(self, motion: Motion, style: str, alpha: float = 1.0) -> Motion:
         """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``)."""
@@ -219,10 +238,24 @@ class RecurrentSession:
     def restart(self) -> None:
         """Forget the stream's clock and outputs: the next frame starts the stream again, every
         performer afresh (as after a gap; :meth:`reset` keeps the clock running)."""
+        self._pending: tuple[float, np.ndarray, np.ndarray] | None = None  # a frame's model frames to run
         self._stamp: float | None = None
         self._origin, self._ticks = 0.0, 0  # model frame k is at stream time origin + k / fps
         self._input: tuple[np.ndarray, np.ndarray] | None = None
         self._outputs: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last two model frames
+
+    def _advance(self, stamp: float, q: np.ndarray, p: np.ndarray) -> None:
+        """Run the model frames up to the input frame at ``stamp``, each one's input interpolated
+        between the previous input frame and this one."""
+        while (t := self._origin + self._ticks / self.fps) <= stamp + STAMP_TOLERANCE:
+            if self._stamp is None or t >= stamp - STAMP_TOLERANCE:
+                frame = q, p
+            else:
+                w = np.clip((t - self._stamp) / (stamp - self._stamp), 0.0, 1.0)
+                frame = rot.slerp(self._input[0], q, w), self._input[1] + w * (p - self._input[1])
+            self._tick(t, *frame)
+            self._ticks += 1
+        self._stamp, self._input = stamp, (q, p)
 
     def _grounded(self, q: np.ndarray, p: np.ndarray, fresh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Features of the frame moved down by each performer's ground offset, and the offsets as

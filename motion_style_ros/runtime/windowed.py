@@ -90,8 +90,8 @@ class WindowedSession(RecurrentSession):
     ``model``: the generator's file name or path (card and companions beside it); ``window``:
     frames per window (default: the card's; a multiple of 4); ``hop``: frames between windows;
     ``lookahead``: output delay in model frames (0 to ``window - 1``); ``latent_seed``: every
-    performer's seed. Until :meth:`set_style`, every performer gets the card's ``neutral_style``
-    at alpha 1.
+    performer's seed; ``pipelined``: as for the recurrent session. Until :meth:`set_style`, every
+    performer gets the card's ``neutral_style`` at alpha 1.
     """
 
     def __init__(
@@ -110,6 +110,7 @@ class WindowedSession(RecurrentSession):
         foot_lock: bool = True,
         ground: bool = True,
         seed_spread: float = 1.0,
+        pipelined: bool = False,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -127,7 +128,7 @@ class WindowedSession(RecurrentSession):
         self.mapping = OnnxModel(companions["mapping"], threads)
         self.style_encoder = OnnxModel(companions["style_encoder"], threads)
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                           foot_lock, ground, delay_frames=self.lookahead)
+                           foot_lock, ground, pipelined, delay_frames=self.lookahead)
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
         self.seed_spread = _spread(seed_spread)
@@ -285,6 +286,7 @@ class WindowedSession(RecurrentSession):
         return self._codes_from + w * (self._codes_to - self._codes_from)
 
     def _begin_codes(self, which: slice | int) -> None:
+        self.catch_up()  # the model frames a pipelined step left run with the codes they had
         self._codes_from[which] = self._current_codes()[which]
         self._code_progress[which] = 0.0 if self._controls.blend_seconds else 1.0
 
