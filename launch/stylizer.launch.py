@@ -35,6 +35,9 @@ STYLIZER_ARGUMENTS = {
     'markers': ('publish_markers', yaml.safe_load,
                 'true: also publish a MarkerArray skeleton for RViz'),
     'qos_reliability': ('qos_reliability', str, 'best_effort or reliable'),
+    'pipelined': ('pipelined', yaml.safe_load,
+                  'true: each frame is published before its model frames run (steadier, one '
+                  'input frame later)'),
 }
 
 

@@ -57,7 +57,9 @@ def add_parser(subparsers):
                     "time; report the end-to-end latency (stamp -> arrival of the stylized frame in "
                     "this node's DDS reader, p50/p99 in ms), the dropped frames, and the stylizer "
                     "process's CPU use (utime + stime from /proc, in %% of one core) for each input "
-                    "rate with one performer and at the highest rate with several performers.",
+                    "rate with one performer and at the highest rate with several performers. "
+                    "Before each stylizer row, a relay node that republishes the frames as they "
+                    "came measures the same path with no stylizing: this machine's floor.",
     )
     nodes.add_argument("--rates", default="30,60,120", metavar="HZ,HZ,...",
                        help="input rates with one performer (default: 30,60,120)")
@@ -344,28 +346,44 @@ def run_nodes(args) -> int:
         print(f"stgcn with lookahead {args.lookahead}: each output shows the motion of "
               f"{1000 * args.lookahead / card['fps']:.0f} ms earlier (not in the latencies below, "
               "which run from the input's stamp to the output's arrival)")
-    rows = [(rate, 1) for rate in rates]
+    rows = [(node, rate, 1) for rate in rates for node in ("relay", "stylizer")]
     if args.performers > 1:
-        rows.append((max(rates), args.performers))
+        rows.append(("stylizer", max(rates), args.performers))
     logs = Path(tempfile.mkdtemp(prefix="motion_style_bench_"))
     print(f"machine: {os.cpu_count()} cores, load average {_load()} (before); node logs in {logs}")
-    print(f"each row: stylizer process (reliable QoS) <- synthetic walk frames from this process, "
-          f"{NODE_WARMUP:g} s warm-up, {args.seconds:g} s measured")
-    columns = ("rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)", "dropped",
-               "node p99", "CPU (%)", "bench CPU")
+    print(f"each row: a node process (reliable QoS) <- synthetic walk frames from this process, "
+          f"{NODE_WARMUP:g} s warm-up, {args.seconds:g} s measured; the relay republishes each "
+          "frame as it came (what DDS and an rclpy node cost here), the stylizer stylizes it")
+    columns = ("node", "rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)",
+               "dropped", "node p99", "CPU (%)", "bench CPU", "delay (ms)")
     print(" ".join(f"{c:>10}" for c in columns))
     with LiveGraph("motion_style_bench", logs) as graph:
-        for rate, performers in rows:
-            latency_ms, sent, node_p99, cpu, own = _stream_nodes(graph, path, rate, performers,
-                                                                 args.seconds, settings)
+        for node, rate, performers in rows:
+            latency_ms, sent, node_p99, cpu, own = _stream_nodes(
+                graph, node, rate, performers, args.seconds,
+                {"model": str(path), **settings} if node == "stylizer" else {})
             p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
-            print(f"{rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} {worst:>10.2f} "
-                  f"{sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} {own:>10.0f}")
+            delay = 1000 * _output_delay(path, args, rate) if node == "stylizer" else 0.0
+            print(f"{node:>10} {rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} "
+                  f"{worst:>10.2f} {sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} "
+                  f"{own:>10.0f} {delay:>10.1f}")
     print(f"load average {_load()} (after); node p99: the stylizer's own p99 (ms, worst performer) "
           "from a message's arrival in its DDS reader to the stylized frame's publication, from its "
-          "/diagnostics; CPU: the stylizer process, % of one core; bench CPU: this process's "
-          "(publishing and receiving every frame), which shares the cores")
+          "/diagnostics; CPU: the node process, % of one core; bench CPU: this process's "
+          "(publishing and receiving every frame), which shares the cores; delay: how much earlier "
+          "than its stamp the motion an output shows is (the session's latency), on top of p50/p99")
     return 0
+
+
+def _output_delay(path, args, rate: float) -> float:
+    """The stylizer's own output latency (s) at ``rate``, as its session works it out."""
+    from motion_style_ros.runtime.session import RecurrentSession
+    from motion_style_ros.runtime.windowed import WindowedSession
+
+    if args.backend == "stgcn":
+        return WindowedSession(path, input_fps=rate, lookahead=args.lookahead,
+                               pipelined=args.pipelined).latency
+    return RecurrentSession(path, input_fps=rate, pipelined=args.pipelined).latency
 
 
 NODE_WARMUP = 2.0  # s of streaming before measuring: ONNX Runtime's first runs, DDS settling
@@ -387,11 +405,11 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _stream_nodes(graph, model, rate: float, performers: int, seconds: float, settings: dict):
-    """One row: a fresh stylizer for ``performers`` performers at ``rate`` Hz; returns the latency
-    (ms) of every measured frame that came back, how many were sent, the node's own p99 (ms, its
-    last diagnostics, worst performer), and the CPU use of the stylizer and of this process (% of
-    one core) over the measured interval."""
+def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float, settings: dict):
+    """One row: a fresh node ``name`` (stylizer or relay, with ``settings``) for ``performers``
+    performers at ``rate`` Hz; returns the latency (ms) of every measured frame that came back, how
+    many were sent, the node's own p99 (ms, its last diagnostics, worst performer; NaN without),
+    and the CPU use of the node and of this process (% of one core) over the measured interval."""
     import os
     import time
 
@@ -406,8 +424,9 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float, se
 
     node = graph.node
     prefixes = [""] if performers == 1 else [f"performer{k}" for k in range(performers)]
-    proc = graph.start("stylizer", model=str(model), performers=prefixes, input_fps=float(rate),
-                       qos_reliability="reliable", qos_depth=100, **settings)
+    if name == "stylizer":
+        settings = {"performers": prefixes, "input_fps": float(rate), **settings}
+    proc = graph.start(name, qos_reliability="reliable", qos_depth=100, **settings)
     reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     topics = [f"{p}/" if p else "" for p in prefixes]
     publishers = [node.create_publisher(JointState, f"{t}joint_states", reliable) for t in topics]
@@ -427,7 +446,7 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float, se
                                      for s in msg.status}), 10)
     graph.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in publishers)
                      and all(s.get_publisher_count() >= 1 for s in subscriptions),
-                     f"the stylizer for {performers} performer(s) to start", STARTUP_SECONDS)
+                     f"the {name} for {performers} performer(s) to start", STARTUP_SECONDS)
 
     layout = JointStateLayout.canonical()
     frames = layout.encode_motion(synthetic_motion("walk", rate, 4.0)).tolist()  # looped
@@ -467,7 +486,7 @@ def _stream_nodes(graph, model, rate: float, performers: int, seconds: float, se
         node.destroy_publisher(publisher)
     for subscription in subscriptions:
         node.destroy_subscription(subscription)
-    graph.stop("stylizer")
+    graph.stop(name)
     latency = [got[s] - s for stamps, got in zip(sent, arrivals) for s in stamps if s in got]
     return (np.array(latency) / 1e6, sum(map(len, sent)), max(node_p99.values(), default=np.nan),
             cpu, own)

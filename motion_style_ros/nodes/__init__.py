@@ -14,10 +14,13 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.errors import MotionStyleError
+
+RELIABILITY = {"best_effort": ReliabilityPolicy.BEST_EFFORT, "reliable": ReliabilityPolicy.RELIABLE}
 
 
 class PlayerNode(Node):
@@ -41,6 +44,16 @@ class PlayerNode(Node):
             descriptor.floating_point_range = [FloatingPointRange(from_value=float(low),
                                                                   to_value=float(high))]
         return self.declare_parameter(name, default, descriptor).value
+
+    def stream_qos(self) -> QoSProfile:
+        """The QoS of a node's JointState streams, from its ``qos_reliability`` and ``qos_depth``."""
+        reliability = self.param("qos_reliability", "best_effort", "QoS reliability of the streams: "
+                                 "best_effort (sensor data; matches every peer) or reliable")
+        depth = self.param("qos_depth", 10, "QoS history depth of the streams", 1, 1000)
+        if reliability not in RELIABILITY:
+            raise MotionStyleError(f"parameter qos_reliability is {reliability!r}; allowed: "
+                                   f"{', '.join(RELIABILITY)}")
+        return QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
 
 
 def joint_state(names: Sequence[str], positions: np.ndarray, stamp, frame_id: str = "") -> JointState:

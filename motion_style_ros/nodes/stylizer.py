@@ -23,7 +23,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import InvalidTopicNameException
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rclpy.subscription import MessageInfo
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -40,7 +40,6 @@ from motion_style_ros.runtime.windowed import MAX_SPREAD, WindowedSession
 
 NAME = "stylizer"
 BACKENDS = ("recurrent", "stgcn")  # Style-ERD frame by frame; ST-GCN windows blended by overlap-add
-RELIABILITY = {"best_effort": ReliabilityPolicy.BEST_EFFORT, "reliable": ReliabilityPolicy.RELIABLE}
 DROP_REASONS = ("mismatched_lengths", "non_finite", "bad_names", "duplicate_stamp", "out_of_order",
                 "invalid_frame")
 # Parameters that change live, with their types (checked by the node: rclpy's own message would
@@ -127,9 +126,7 @@ class Stylizer(PlayerNode):
         blend = self.param("blend_seconds", 0.3, "seconds over which a style/alpha/mix change blends "
                            "in", 0.0, 60.0)
         layout = self.param("layout", "", "JointState layout YAML (config/layouts/); '' = canonical")
-        reliability = self.param("qos_reliability", "best_effort", "QoS reliability of the streams: "
-                                 "best_effort (sensor data; matches every peer) or reliable")
-        depth = self.param("qos_depth", 10, "QoS history depth of the streams", 1, 1000)
+        qos = self.stream_qos()
         self.trajectory_points = self.param("trajectory_points", 6, "points per JointTrajectory "
                                             "chunk", 1, 120)
         publish_markers = self.param("publish_markers", False, "publish the stylized skeleton as "
@@ -147,9 +144,6 @@ class Stylizer(PlayerNode):
                                "latency (1/input_fps)")
         if backend not in BACKENDS:
             raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
-        if reliability not in RELIABILITY:
-            raise MotionStyleError(f"parameter qos_reliability is {reliability!r}; allowed: "
-                                   f"{', '.join(RELIABILITY)}")
         if not prefixes or len(set(prefixes)) != len(prefixes):
             raise MotionStyleError(f"parameter performers is {list(prefixes)}; give distinct topic "
                                    "prefixes, e.g. ['alice', 'bob'] (or [''] for one performer)")
@@ -199,7 +193,6 @@ class Stylizer(PlayerNode):
         for key, value in self.settings.items():
             if reason := self._problem(key, value):
                 raise MotionStyleError(f"parameter {key}: {reason}")
-        qos = QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
         self.performers = [Performer(self, prefix, s, qos, publish_markers)
                            for prefix, s in zip(prefixes, sessions)]
         self._apply(self.settings)
