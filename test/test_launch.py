@@ -21,8 +21,12 @@ LAUNCH = ROOT / "launch" / "stylizer.launch.py"
 
 
 def declared(node: str) -> set[str]:
-    """Parameter names a node declares (every node declares through ``self.param("name", ...)``)."""
-    source = (ROOT / "motion_style_ros" / "nodes" / f"{node}.py").read_text()
+    """Parameter names a node declares (every node declares through ``self.param("name", ...)``,
+    the QoS ones through ``self.stream_qos()``, which nodes/__init__.py defines)."""
+    nodes = ROOT / "motion_style_ros" / "nodes"
+    source = (nodes / f"{node}.py").read_text()
+    if "self.stream_qos()" in source:
+        source += (nodes / "__init__.py").read_text()
     return set(re.findall(r'self\.param\(\s*"(\w+)"', source))
 
 
