@@ -176,7 +176,8 @@ class FootLock:
         ``anchor_stretch`` further since it landed than the input's ankle (``ahead``, ``(P, 2, 3)``)."""
         reach = rot.norm(ahead, keepdims=True)
         down = self._locked & (reach[..., 0] > self.anchor_stretch) & (ankle[..., 1] < self._height + DOWN)
-        step = np.nan_to_num(root - self._last_root)  # NaN on a first frame: no step to hold back
+        step = root - self._last_root
+        step[np.isnan(step)] = 0.0  # NaN on a first frame: no step to hold back
         step[:, 1] = 0.0
         length = rot.norm(step, keepdims=True)
         forward = step / np.maximum(length, _EPS)

@@ -6,6 +6,7 @@ parameter) logs one error line and exits with status 2, and Ctrl-C ends it clean
 
 from __future__ import annotations
 
+import gc
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -70,6 +71,11 @@ def run(make_node: Callable[[], PlayerNode], name: str, args=None) -> int:
     node = None
     try:
         node = make_node()
+        # What the node built to start with (rclpy, ONNX Runtime, the models) lives as long as the
+        # node. Frozen, it is out of the collector's way: a full collection in the stylizer then
+        # takes 0.01 ms instead of 9-14 ms, which would otherwise fall in the middle of a stream.
+        gc.collect()
+        gc.freeze()
         rclpy.spin_until_future_complete(node, node.done)
     except (MotionStyleError, ParameterException) as exc:
         message = " ".join(str(exc).split())
