@@ -14,7 +14,7 @@ between calls:
   model's, an output whose time is past the newest model frame holds it. Latency never exceeds
   one model frame.
 - **Pipelining.** With ``pipelined``, the output is one input frame later (``latency`` grows by
-  ``1 / input_fps``: 33.3 ms at 120 Hz input) and needs no model frame of its own input frame:
+  ``1 / input_fps``, to 33.3 ms at 120 Hz input) and needs no model frame of its own input frame:
   :meth:`~RecurrentSession.step` returns it before running them, and :meth:`~RecurrentSession.catch_up`
   runs them once the caller has sent the output on (the next call runs them first otherwise). A
   live node's every frame then costs an interpolation on its way through, the model's work
@@ -77,8 +77,8 @@ class RecurrentSession:
     ONNX Runtime threads; ``phase_seconds`` (in [0, 1 / fps)): how much later than the stream's
     start the model's clock ticks, so that sessions serving several streams in one process run
     their model frames on different input frames rather than all on the same one; ``foot_lock``,
-    ``ground`` and ``pipelined``: see the module docstring. Until :meth:`set_style`, every performer gets the
-    model's neutral style (its card's ``neutral_style``) at alpha 1.
+    ``ground`` and ``pipelined``: see the module docstring. Until :meth:`set_style`, every
+    performer gets the model's neutral style (its card's ``neutral_style``) at alpha 1.
     """
 
     def __init__(
