@@ -132,3 +132,34 @@ def test_reference_clips_are_read_checked_and_used(node, model, frames, datasets
     out = np.array([m.position for m in got])
     assert difference(out, expected) < 1e-5  # the rejected clips changed nothing
     assert difference(out[250:], offline(model, frames, {120: SEEDED})[250:]) > 1e-4
+
+
+def test_a_reference_stays_in_use_when_the_seed_changes(node, model, frames, datasets):
+    """The ``reference`` parameter still names the clip after a ``latent_seed`` change, and the
+    clip's code is still the one in use."""
+    send, set_parameters, got, _ = node
+    assert len(got) == len(frames)  # after the reference test: its clip is in use
+    more = [(T0 + (len(frames) + k) * PERIOD, v) for k, (_, v) in enumerate(frames[:90])]
+    send(more[:30])
+    (result,) = set_parameters(latent_seed=9)
+    assert result.successful, result.reason
+    send(more[30:])
+    clip = canonical_clip(str(datasets / REFERENCE))
+
+    def reference(session):
+        session.set_style("elderly")
+        session.set_reference(clip, "elderly")
+
+    def reseeded(keep):
+        def control(session):
+            session.set_seed(9, spread=2.0)
+            if keep:
+                session.set_reference(clip, "elderly")
+        return control
+
+    n = len(frames)
+    out = np.array([m.position for m in got])
+    kept = offline(model, frames + more, {120: SEEDED, 240: reference, n + 30: reseeded(True)})
+    dropped = offline(model, frames + more, {120: SEEDED, 240: reference, n + 30: reseeded(False)})
+    assert difference(out, kept) < 1e-5
+    assert difference(out[n + 40:], dropped[n + 40:]) > 1e-4

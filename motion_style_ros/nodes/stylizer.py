@@ -241,11 +241,12 @@ class Stylizer(PlayerNode):
 
     def _apply(self, changes: dict) -> None:
         """Hand changed controls to every session; they blend in from the next frame. A reference
-        clip is read (and checked) before anything changes."""
+        clip is read (and checked) before anything changes; it stays in use when the seed changes
+        (the seed's codes are derived again, then the clip's replaces the target style's)."""
         settings = {**self.settings, **changes}
         reference = None
         if self.backend == "stgcn" and settings["reference"] and (
-                {"reference", "target_style"} & changes.keys()):
+                {"reference", "target_style", "latent_seed", "seed_spread"} & changes.keys()):
             reference = canonical_clip(settings["reference"])
             self.performers[0].session.reference_codes(reference)  # too short, NaN: rejected here
         for p in self.performers:
