@@ -106,7 +106,7 @@ def run_recurrent(args) -> int:
           f"{args.input_fps / session.fps:g}, the others interpolate")
     columns = ("performers", "p50 (us)", "p99 (us)", "max (us)", "mean (us)", "real time")
     print(" ".join(f"{c:>10}" for c in columns))
-    for n, (_, micros) in results.items():
+    for n, (_, micros, _) in results.items():
         p50, p99, worst = np.percentile(micros, [50, 99, 100])
         print(f"{n:>10} {p50:>10.0f} {p99:>10.0f} {worst:>10.0f} {micros.mean():>10.0f} "
               f"{'yes' if p99 < budget_us else 'no':>10}")
@@ -142,7 +142,7 @@ def run_recurrent(args) -> int:
         from motion_style_ros.runtime.onnx_model import record_metrics
 
         rows = {str(n): dict(zip(("p50_us", "p99_us"), np.percentile(m, [50, 99]).round(1).tolist()))
-                for n, (_, m) in results.items()}
+                for n, (_, m, _) in results.items()}
         figures = {"command": "motion-style " + shlex.join(sys.argv[1:]), "cpus": os.cpu_count(),
                    "load_average": os.getloadavg()[0], "input_fps": args.input_fps,
                    "step_per_performers": rows, "paced_1_performer": paced,
@@ -236,7 +236,7 @@ def _time_steps(path, performers: int, seconds: float, input_fps: float, threads
     of a synthetic walk (each performer at its own phase), so that every part of a step runs:
     features, the model, decoding and foot locking on planted feet. ``paced``: each frame comes
     when a live stream's would (the CPU's caches go cold in between), and the times of the
-    catch_up() calls after each step come back too."""
+    catch_up() calls after each step come back too (else none)."""
     import time
 
     import numpy as np
@@ -264,7 +264,7 @@ def _time_steps(path, performers: int, seconds: float, input_fps: float, threads
         if paced:
             session.catch_up()
             between.append((time.perf_counter_ns() - stepped) / 1000)
-    return (session, np.array(micros), np.array(between)) if paced else (session, np.array(micros))
+    return session, np.array(micros), np.array(between)
 
 
 def _largest_real_time(path, seconds: float, input_fps: float, threads: int) -> int:

@@ -195,6 +195,7 @@ class Stylizer(PlayerNode):
                 raise MotionStyleError(f"parameter {key}: {reason}")
         self.performers = [Performer(self, prefix, s, qos, publish_markers)
                            for prefix, s in zip(prefixes, sessions)]
+        self._reference = None  # the clip of the reference parameter, once read
         self._apply(self.settings)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         skeleton = session.skeleton
@@ -241,14 +242,20 @@ class Stylizer(PlayerNode):
 
     def _apply(self, changes: dict) -> None:
         """Hand changed controls to every session; they blend in from the next frame. A reference
-        clip is read (and checked) before anything changes; it stays in use when the seed changes
-        (the seed's codes are derived again, then the clip's replaces the target style's)."""
+        clip is read (and checked) when it is set, before anything changes; it stays in use when the
+        target style or the seed changes (the seed's codes are derived again, then the clip's
+        replaces the target style's), without being read again."""
         settings = {**self.settings, **changes}
         reference = None
         if self.backend == "stgcn" and settings["reference"] and (
                 {"reference", "target_style", "latent_seed", "seed_spread"} & changes.keys()):
-            reference = canonical_clip(settings["reference"])
-            self.performers[0].session.reference_codes(reference)  # too short, NaN: rejected here
+            if "reference" in changes or self._reference is None:
+                reference = canonical_clip(settings["reference"])
+                self.performers[0].session.reference_codes(reference)  # too short, NaN: rejected here
+            else:
+                reference = self._reference
+        if "reference" in changes or reference is not None:
+            self._reference = reference  # None once the parameter is emptied
         for p in self.performers:
             if "target_style" in changes:
                 p.session.set_style(changes["target_style"])
