@@ -25,7 +25,7 @@ def declared(node: str) -> set[str]:
     the QoS ones through ``self.stream_qos()``, which nodes/__init__.py defines)."""
     nodes = ROOT / "motion_style_ros" / "nodes"
     source = (nodes / f"{node}.py").read_text()
-    if "self.stream_qos()" in source:
+    if "self.stream_qos(" in source:
         source += (nodes / "__init__.py").read_text()
     return set(re.findall(r'self\.param\(\s*"(\w+)"', source))
 

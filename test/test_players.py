@@ -92,7 +92,7 @@ def test_bag_player_loops(listener, start, tmp_path):
 def test_recorder_writes_what_was_published(listener, start, tmp_path):
     bag = tmp_path / "recorded"
     proc = start("recorder", bag=bag, topics="['joint_states', 'other/joint_states']",
-                 reliability="reliable")
+                 qos_reliability="reliable")
     reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     pub = listener.node.create_publisher(JointState, "joint_states", reliable)
     listener.spin_until(lambda: pub.get_subscription_count() > 0, "the recorder to subscribe",
@@ -119,7 +119,7 @@ def test_recorder_writes_what_was_published(listener, start, tmp_path):
     ("bvh_player", {"file": "x.bvh", "rate": 0.0}, "rate"),
     ("bag_player", {"bag": "/nonexistent/bag"}, "no such bag"),
     ("synthetic_performer", {"motion": "dance"}, "walk, run, wave"),
-    ("recorder", {"reliability": "sometimes"}, "best_effort, reliable"),
+    ("recorder", {"qos_reliability": "sometimes"}, "best_effort, reliable"),
 ])
 def test_a_node_that_cannot_start_says_why_in_one_line(start, node, params, expected):
     proc = start(node, **params)

@@ -117,7 +117,7 @@ def _stream(model: Path, timeline, seconds: float, out: Path):
             lambda m, info: outputs.append((stamp_ns(m.header.stamp), info["received_timestamp"])),
             listen)
         # best_effort: the recorder matches the performer's sensor-data publisher too.
-        graph.start("recorder", topics=[INPUT, OUTPUT], bag=str(out / "bag"), reliability="best_effort")
+        graph.start("recorder", topics=[INPUT, OUTPUT], bag=str(out / "bag"), qos_reliability="best_effort")
         # The stylizer keeps its default sensor-data QoS (best effort): a reliable subscription
         # would not match the performer's best-effort publisher.
         graph.start("stylizer", model=str(model), target_style=first_style, alpha=float(first_alpha),

@@ -46,11 +46,12 @@ class PlayerNode(Node):
                                                                   to_value=float(high))]
         return self.declare_parameter(name, default, descriptor).value
 
-    def stream_qos(self) -> QoSProfile:
-        """The QoS of a node's JointState streams, from its ``qos_reliability`` and ``qos_depth``."""
+    def stream_qos(self, depth: int = 10) -> QoSProfile:
+        """The QoS of a node's JointState streams, from its ``qos_reliability`` and ``qos_depth``
+        (``depth`` is the default: a recorder wants a deeper queue than a stylizer)."""
         reliability = self.param("qos_reliability", "best_effort", "QoS reliability of the streams: "
                                  "best_effort (sensor data; matches every peer) or reliable")
-        depth = self.param("qos_depth", 10, "QoS history depth of the streams", 1, 1000)
+        depth = self.param("qos_depth", depth, "QoS history depth of the streams", 1, 1000)
         if reliability not in RELIABILITY:
             raise MotionStyleError(f"parameter qos_reliability is {reliability!r}; allowed: "
                                    f"{', '.join(RELIABILITY)}")

@@ -9,7 +9,6 @@ from __future__ import annotations
 import sys
 from datetime import datetime
 
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.errors import MotionStyleError
@@ -17,7 +16,6 @@ from motion_style_ros.io.bags import BagWriter
 from motion_style_ros.nodes import PlayerNode, run
 
 NAME = "recorder"
-RELIABILITY = ("best_effort", "reliable")
 
 
 class Recorder(PlayerNode):
@@ -25,17 +23,10 @@ class Recorder(PlayerNode):
         super().__init__(NAME)
         topics = self.param("topics", ["joint_states"], "JointState topics to record")
         bag = self.param("bag", "", "bag folder to create; empty: rosbag2_<date>_<time>")
-        reliability = self.param("reliability", "best_effort",
-                                 "QoS reliability of the subscriptions: best_effort (matches every "
-                                 "publisher) or reliable (no drops; only reliable publishers)")
-        if reliability not in RELIABILITY:
-            raise MotionStyleError(f"parameter reliability is {reliability!r}; choose one of "
-                                   f"{', '.join(RELIABILITY)}")
         if not topics or not all(topics):
             raise MotionStyleError("parameter topics is empty; give topic names, e.g. ['joint_states']")
         # A deep queue so that bursts are not dropped while the bag writes.
-        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT
-                         if reliability == "best_effort" else ReliabilityPolicy.RELIABLE)
+        qos = self.stream_qos(depth=100)
         self.writer = BagWriter(bag or datetime.now().strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
         for topic in topics:
             resolved = self.resolve_topic_name(topic)
