@@ -349,6 +349,7 @@ def run_nodes(args) -> int:
     rows = [(node, rate, 1) for rate in rates for node in ("relay", "stylizer")]
     if args.performers > 1:
         rows.append(("stylizer", max(rates), args.performers))
+    delays = {rate: 1000 * _output_delay(path, args, rate) for rate in rates}  # ms, the stylizer's
     logs = Path(tempfile.mkdtemp(prefix="motion_style_bench_"))
     print(f"machine: {os.cpu_count()} cores, load average {_load()} (before); node logs in {logs}")
     print(f"each row: a node process (reliable QoS) <- synthetic walk frames from this process, "
@@ -363,7 +364,7 @@ def run_nodes(args) -> int:
                 graph, node, rate, performers, args.seconds,
                 {"model": str(path), **settings} if node == "stylizer" else {})
             p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
-            delay = 1000 * _output_delay(path, args, rate) if node == "stylizer" else 0.0
+            delay = delays[rate] if node == "stylizer" else 0.0
             print(f"{node:>10} {rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} "
                   f"{worst:>10.2f} {sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} "
                   f"{own:>10.0f} {delay:>10.1f}")
