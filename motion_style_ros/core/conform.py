@@ -25,6 +25,7 @@ import numpy as np
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.skeleton import Skeleton
 from motion_style_ros.errors import MotionStyleError
 
 CHAINS = tuple(tuple(f"{j}_{side}" for j in ("Shoulder", "UpperArm", "LowerArm", "Hand"))
@@ -34,15 +35,34 @@ STD_FLOOR = 0.05  # 6D components that hardly vary in the training data still al
 
 ANKLES = ("Foot_L", "Foot_R")
 PLANTED_PERCENTILE = 5.0  # a clip's planted-ankle height: this percentile of its ankle heights
+HANG_DEGREES = 45.0  # an arm hangs while its upper arm is this close to straight down
 
 
 def statistics(motions: list[Motion]) -> dict[str, np.ndarray]:
-    """Per-joint mean and standard deviation of the 6D local rotations ``(J, 6)`` over clips, and
-    the median planted-ankle height (m)."""
+    """Per-joint mean and standard deviation of the 6D local rotations ``(J, 6)`` over clips (an
+    arm chain's joints over the frames where that arm hangs, :func:`arms_hang`), and the median
+    planted-ankle height (m)."""
+    sk = motions[0].skeleton
     d6 = np.concatenate([rot.to_6d(m.rotations) for m in motions])
-    return {"names": np.array(motions[0].skeleton.names), "mean": d6.mean(axis=0),
-            "std": np.maximum(d6.std(axis=0), STD_FLOOR),
+    hang = np.concatenate([arms_hang(m.global_positions(), sk) for m in motions])
+    use = np.ones(d6.shape[:2], dtype=bool)
+    for side, chain in enumerate(CHAINS):
+        use[:, [sk.index(n) for n in chain]] = hang[:, side, None]
+    count = use.sum(axis=0)[:, None]
+    mean = np.where(use[..., None], d6, 0.0).sum(axis=0) / count
+    var = np.where(use[..., None], np.square(d6 - mean), 0.0).sum(axis=0) / count
+    return {"names": np.array(sk.names), "mean": mean, "std": np.maximum(np.sqrt(var), STD_FLOOR),
             "ankle_height": np.median([planted_ankle_height(m) for m in motions])}
+
+
+def arms_hang(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """``(..., 2)``: whether each arm (left, right) hangs, its upper arm within :data:`HANG_DEGREES`
+    of straight down, from global joint positions ``(..., J, 3)``. Rolls are estimated on these
+    frames only: how a raised or waving arm's frames turn says more about the motion than the rig."""
+    upper = positions[..., [skeleton.index(f"UpperArm_{s}") for s in "LR"], :]
+    lower = positions[..., [skeleton.index(f"LowerArm_{s}") for s in "LR"], :]
+    bone = lower - upper
+    return -bone[..., 1] > np.cos(np.radians(HANG_DEGREES)) * np.maximum(rot.norm(bone), 1e-9)
 
 
 def planted_ankle_height(motion: Motion) -> float:
@@ -58,54 +78,239 @@ def ground(motion: Motion, stats: dict[str, np.ndarray]) -> Motion:
     return Motion(motion.skeleton, motion.rotations, positions, motion.fps)
 
 
-def conform(motion: Motion, stats: dict[str, np.ndarray]) -> Motion:
-    """A retargeted clip in the training data's conventions: arm rolls and ankle height."""
-    return ground(conform_rolls(motion, stats), stats)
+ARM_JOINTS = tuple(name for chain in CHAINS for name in chain)
+ROLL_STEPS = 72  # the grid of roll angles, 5 degrees apart
+# How much more typical (mean squared z-score per frame, per chain) the rolled frames must be than
+# the unrolled ones before a chain is rolled at all, and fully: Bandai test takes reach 14 at the
+# 99th percentile, retargeted CMU arms 63-292, Xia's 5-33 (their rolls are small).
+ROLL_EVIDENCE = (20.0, 50.0)
+ROLL_MIN_FRAMES = 4  # hanging-arm frames a chain needs before its rolls are estimated
+_D6 = [0, 3, 6, 1, 4, 7]  # the 6D components among a row-major 3x3 matrix's entries
 
 
-def _rolls(steps: int) -> np.ndarray:
-    angles = np.arange(steps) * (2 * np.pi / steps)
-    return rot.from_axis_angle(np.broadcast_to([1.0, 0.0, 0.0], (steps, 3)), angles)
+class RollModel:
+    """The training statistics as quadratic forms in a joint's rotation matrix.
+
+    A 6D rotation is linear in the matrix, so the summed squared z-score of a joint's frames rolled
+    by any pair of grid angles (its parent's frame by ``a``, its own by ``b``) follows from the
+    frames' first and second moments alone: a live stream keeps 90 numbers per arm joint, and a
+    clip of any length costs one pass. Built once per process (:func:`roll_model`).
+    """
+
+    def __init__(self, stats: dict[str, np.ndarray], steps: int = ROLL_STEPS) -> None:
+        names = list(stats["names"])
+        joints = [names.index(n) for n in ARM_JOINTS]
+        self.angles = np.arange(steps) * (2 * np.pi / steps)
+        c, s = np.cos(self.angles), np.sin(self.angles)
+        rolls = np.zeros((steps, 3, 3))
+        rolls[:, 0, 0] = 1.0
+        rolls[:, 1, 1], rolls[:, 1, 2], rolls[:, 2, 1], rolls[:, 2, 2] = c, -s, s, c
+        basis = np.eye(9).reshape(9, 3, 3)
+        # 6D of R_a^T E_k R_b for the 9 basis matrices E_k: (A, B, 6, 9)
+        rolled = np.einsum("aji,kjl,blm->abkim", rolls, basis, rolls).reshape(steps, steps, 9, 9)
+        linear = rolled[..., _D6].swapaxes(-1, -2)
+        mean, std = stats["mean"][joints], stats["std"][joints]  # (8, 6)
+        g = linear[None] / std[:, None, None, :, None]  # (8, A, B, 6, 9)
+        centre = mean / std
+        self.quadratic = np.einsum("jabki,jabkl->jabil", g, g).reshape(len(joints), steps, steps, 81)
+        self.linear = np.einsum("jabki,jk->jabi", g, centre)
+        self.constant = np.square(centre).sum(axis=-1)
+
+    def costs(self, second: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:
+        """``(P, 8, A, B)``: each arm joint's cost at every roll pair, from the moments
+        ``second`` ``(P, 8, 9, 9)``, ``first`` ``(P, 8, 9)`` and frame counts ``(P, 8)``."""
+        p = second.shape[0]
+        return (np.einsum("jabx,pjx->pjab", self.quadratic, second.reshape(p, -1, 81))
+                - 2.0 * np.einsum("jabx,pjx->pjab", self.linear, first)
+                + count[:, :, None, None] * self.constant[None, :, None, None])
+
+    def solve(self, second: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:
+        """``(P, 8)``: the rolls (radians, :data:`ARM_JOINTS` order) that make the frames most
+        typical, chosen together along each chain by dynamic programming (its first parent, the
+        chest, keeps its frame), each chain's scaled by how clearly it beats no rolls at all
+        (:data:`ROLL_EVIDENCE`)."""
+        costs = self.costs(second, first, count)
+        n = len(CHAINS[0])
+        angles = np.zeros(costs.shape[:2])
+        for c in range(len(CHAINS)):
+            chain = costs[:, c * n:(c + 1) * n]
+            total = chain[:, 0, 0]  # (P, B)
+            back = []
+            for k in range(1, n):
+                candidates = total[:, :, None] + chain[:, k]  # (P, A, B)
+                back.append(np.argmin(candidates, axis=1))
+                total = candidates.min(axis=1)
+            choice = np.zeros((len(chain), n), dtype=int)
+            choice[:, -1] = np.argmin(total, axis=1)
+            for k in range(n - 1, 0, -1):
+                choice[:, k - 1] = np.take_along_axis(back[k - 1], choice[:, k, None], axis=1)[:, 0]
+            offset = self._refine(chain, choice)
+            unrolled = chain[:, :, 0, 0].sum(axis=1)
+            frames = count[:, c * n]
+            gain = (unrolled - total.min(axis=1)) / np.maximum(frames, 1)
+            low, high = ROLL_EVIDENCE
+            weight = np.clip((gain - low) / (high - low), 0.0, 1.0) * (frames >= ROLL_MIN_FRAMES)
+            step = self.angles[1]
+            rolls = np.angle(np.exp(1j * (self.angles[choice] + offset * step)))  # the short way
+            angles[:, c * n:(c + 1) * n] = weight[:, None] * rolls
+        return angles
 
 
-def conform_rolls(motion: Motion, stats: dict[str, np.ndarray], steps: int = 72,
-                  frames: int = 240) -> Motion:
-    """``motion`` with constant per-joint rolls about the bone axes (see the module docstring),
-    chosen on up to ``frames`` frames spread over the clip; global positions are unchanged to
-    rounding."""
+    @staticmethod
+    def _refine(chain: np.ndarray, choice: np.ndarray) -> np.ndarray:
+        """``(P, n)``: each joint's roll between grid points (in steps, within half a step), from a
+        parabola through the chain's cost at its grid roll and the two beside it, its neighbours'
+        rolls held: a live estimate and a whole clip's then differ by less than a grid step."""
+        p, n = choice.shape
+        steps = chain.shape[-1]
+        rows = np.arange(p)
+        values = np.zeros((p, n, 3))
+        for k in range(n):
+            for i, d in enumerate((-1, 0, 1)):
+                b = (choice[:, k] + d) % steps
+                a = choice[:, k - 1] if k else np.zeros(p, dtype=int)
+                f = chain[rows, k, a, b]
+                if k + 1 < n:
+                    f = f + chain[rows, k + 1, b, choice[:, k + 1]]
+                values[:, k, i] = f
+        curve = values[..., 0] - 2.0 * values[..., 1] + values[..., 2]
+        offset = 0.5 * (values[..., 0] - values[..., 2]) / np.where(curve > 1e-12, curve, np.inf)
+        return np.clip(offset, -0.5, 0.5)
+
+
+_MODELS: dict[bytes, RollModel] = {}
+
+
+def roll_model(stats: dict[str, np.ndarray]) -> RollModel:
+    """The :class:`RollModel` of these statistics, built once."""
+    key = np.asarray(stats["mean"]).tobytes() + np.asarray(stats["std"]).tobytes()
+    if key not in _MODELS:
+        _MODELS[key] = RollModel(stats)
+    return _MODELS[key]
+
+
+def arm_moments(rotations: np.ndarray, hang: np.ndarray, joints: list[int]
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Second ``(..., 8, 9, 9)`` and first ``(..., 8, 9)`` moments of the arm joints' rotation
+    matrices and the frame counts ``(..., 8)``, summed over the frames ``(T, ..., J, 4)`` where
+    each joint's arm hangs (``hang`` ``(T, ..., 2)``)."""
+    q = rotations[..., joints, :]
+    v = rot.to_matrix(q).reshape(q.shape[:-1] + (9,))  # (T, ..., 8, 9)
+    w = np.repeat(hang, len(CHAINS[0]), axis=-1).astype(np.float64)  # (T, ..., 8)
+    return (np.einsum("t...j,t...ji,t...jk->...jik", w, v, v), np.einsum("t...j,t...ji->...ji", w, v),
+            w.sum(axis=0))
+
+
+def roll_quaternions(angles: np.ndarray) -> np.ndarray:
+    """Quaternions of rolls about the bone axis (local X) by ``angles``."""
+    half = 0.5 * np.asarray(angles, dtype=np.float64)
+    q = np.zeros(half.shape + (4,))
+    q[..., 0], q[..., 1] = np.cos(half), np.sin(half)
+    return q
+
+
+def apply_rolls(rotations: np.ndarray, joints: list[int], angles: np.ndarray, undo: bool = False
+                ) -> np.ndarray:
+    """``rotations`` ``(..., J, 4)`` with the arm joints' frames rolled by ``angles`` ``(..., 8)``
+    (each joint's local rotation turned by its parent's inverse roll on the left and its own on
+    the right; positions do not move). ``undo`` turns conformed rotations back."""
+    out = rotations.copy()
+    roll = roll_quaternions(angles if undo else -angles)  # the inverse rolls when conforming
+    n = len(CHAINS[0])
+    for i, j in enumerate(joints):
+        q = rot.multiply(out[..., j, :], rot.conjugate(roll[..., i, :]))
+        if i % n:
+            q = rot.multiply(roll[..., i - 1, :], q)
+        out[..., j, :] = q
+    return out
+
+
+def clip_rolls(motion: Motion, stats: dict[str, np.ndarray]) -> np.ndarray:
+    """``(8,)``: the rolls (radians, :data:`ARM_JOINTS` order) that conform a whole clip."""
     sk = motion.skeleton
     if list(stats["names"]) != list(sk.names):
         raise MotionStyleError("rotation statistics are for another skeleton")
-    rolls = _rolls(steps)
-    inverse = rot.conjugate(rolls)
-    rotations = motion.rotations.copy()
-    sample = np.unique(np.linspace(0, motion.n_frames - 1, frames).round().astype(int))
-    for chain in CHAINS:
-        joints = [sk.index(n) for n in chain]
-        # cost[k][a, b]: joint k rolled by b, its parent by a (the chain's first parent, the chest,
-        # keeps its frame: a = 0 only).
-        costs = []
-        for k, j in enumerate(joints):
-            parents = inverse[:1] if k == 0 else inverse
-            local = rot.multiply(rot.multiply(parents[:, None, None], rotations[None, None, sample, j]),
-                                 rolls[None, :, None])  # (A, B, T, 4)
-            z = (rot.to_6d(local) - stats["mean"][j]) / stats["std"][j]
-            costs.append(np.square(z).sum(axis=(-1, -2)))
-        # Viterbi over the chain: best total cost ending with each roll of joint k.
-        total = costs[0][0]
-        back = []
-        for cost in costs[1:]:
-            candidates = total[:, None] + cost
-            back.append(np.argmin(candidates, axis=0))
-            total = candidates.min(axis=0)
-        choice = [int(np.argmin(total))]
-        for pointer in reversed(back):
-            choice.append(int(pointer[choice[-1]]))
-        choice.reverse()
-        for k, j in enumerate(joints):
-            parent_roll = inverse[choice[k - 1]] if k else rot.identity()
-            rotations[:, j] = rot.multiply(rot.multiply(parent_roll, rotations[:, j]), rolls[choice[k]])
-    return Motion(sk, rotations, motion.positions, motion.fps)
+    joints = [sk.index(n) for n in ARM_JOINTS]
+    moments = arm_moments(motion.rotations, arms_hang(motion.global_positions(), sk), joints)
+    return roll_model(stats).solve(*(m[None] for m in moments))[0]
+
+
+def conform_rolls(motion: Motion, stats: dict[str, np.ndarray]) -> Motion:
+    """``motion`` with constant per-joint rolls about the bone axes (see the module docstring),
+    chosen on its frames where the arms hang; global positions are unchanged to rounding."""
+    joints = [motion.skeleton.index(n) for n in ARM_JOINTS]
+    rotations = apply_rolls(motion.rotations, joints, clip_rolls(motion, stats))
+    return Motion(motion.skeleton, rotations, motion.positions, motion.fps)
+
+
+class StreamRolls:
+    """:func:`conform_rolls` for ``performers`` live streams, from each stream itself.
+
+    Each model frame adds its hanging arms' rotations to the performer's moments; the rolls are
+    solved again every ``solve_seconds`` for the first ``settle_seconds`` of a stream and every
+    second after, and the applied rolls ease towards the solution with time constant
+    ``ease_seconds`` (a new solution never jumps the stylizer's input). A stream's rolls are its
+    rig's, so they hold for as long as the performer streams: :meth:`clear` starts a performer's
+    calibration afresh; :meth:`calibrate` sets it from a whole clip at once (the offline path) and
+    keeps it.
+    """
+
+    def __init__(self, performers: int, fps: float, stats: dict[str, np.ndarray], skeleton: Skeleton,
+                 solve_seconds: float = 0.1, settle_seconds: float = 2.0, ease_seconds: float = 0.1
+                 ) -> None:
+        self.stats = stats
+        self.model = roll_model(stats)
+        self.skeleton = skeleton
+        self.joints = [skeleton.index(n) for n in ARM_JOINTS]
+        self._every = max(1, round(solve_seconds * fps))
+        self._settle = round(settle_seconds * fps)
+        self._late = max(1, round(fps))
+        self._gain = 1.0 - np.exp(-1.0 / (fps * ease_seconds))
+        n = len(self.joints)
+        self._second = np.zeros((performers, n, 9, 9))
+        self._first = np.zeros((performers, n, 9))
+        self._count = np.zeros((performers, n))
+        self.frames = np.zeros(performers, dtype=int)  # model frames seen
+        self.target = np.zeros((performers, n))
+        self.angles = np.zeros((performers, n))
+        self.frozen = np.zeros(performers, dtype=bool)
+
+    def clear(self, which: np.ndarray | slice) -> None:
+        """These performers' calibration starts again from nothing (no rolls)."""
+        for a in (self._second, self._first, self._count, self.frames, self.target, self.angles):
+            a[which] = 0
+        self.frozen[which] = False
+
+    def calibrate(self, performer: int, motion: Motion) -> None:
+        """One performer's rolls from a whole clip, applied at once and kept."""
+        self.target[performer] = self.angles[performer] = clip_rolls(motion, self.stats)
+        self.frozen[performer] = True
+
+    def conform(self, rotations: np.ndarray) -> np.ndarray:
+        """A frame's rotations ``(P, J, 4)`` with each performer's rolls as they stand."""
+        return apply_rolls(rotations, self.joints, self.angles)
+
+    def observe(self, rotations: np.ndarray, positions: np.ndarray) -> None:
+        """Add one model frame ``(P, J, 4)`` (the stream's own rotations) with its global joint
+        positions ``(P, J, 3)`` (which the rolls do not change), and move the rolls on."""
+        live = ~self.frozen
+        if not live.any():
+            return
+        moments = arm_moments(rotations[live][None], arms_hang(positions[live], self.skeleton)[None],
+                              self.joints)
+        for total, add in zip((self._second, self._first, self._count), moments):
+            total[live] += add
+        self.frames[live] += 1
+        n = self.frames
+        due = live & (np.where(n <= self._settle, n % self._every, n % self._late) == 0)
+        if due.any():
+            self.target[due] = self.model.solve(self._second[due], self._first[due], self._count[due])
+        turn = np.angle(np.exp(1j * (self.target - self.angles)))  # the short way round
+        self.angles = np.where(live[:, None], self.angles + self._gain * turn, self.angles)
+
+    def undo(self, rotations: np.ndarray) -> np.ndarray:
+        """Conformed rotations ``(P, J, 4)`` turned back to each stream's own joint frames."""
+        return apply_rolls(rotations, self.joints, self.angles, undo=True)
 
 
 class StreamGround:

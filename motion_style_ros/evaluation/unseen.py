@@ -14,7 +14,7 @@ import numpy as np
 from tqdm import tqdm
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.conform import conform
+from motion_style_ros.core.conform import ground
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.retarget import retarget
 from motion_style_ros.core.skeleton import canonical
@@ -30,14 +30,15 @@ FLIP_DEGREES = 90.0
 
 def neutral_clips(root: Path | None = None) -> list[tuple[str, Motion]]:
     """Every CMU clip (neutral performances, calibration T-pose dropped) and the Xia neutral clips,
-    retargeted to the canonical skeleton and conformed to the training data (arm rolls, ankle height)."""
+    retargeted to the canonical skeleton, their planted ankles at the training data's height (the
+    sessions conform their arm rolls)."""
     infos = datasets.index_cmu(root) + [i for i in datasets.index_xia(root) if i.style == "neutral"]
     stats = datasets.rotation_stats()
     clips = []
     for info in infos:
         motion = datasets.load_clip(info)
         motion = motion[1:] if info.dataset == "cmu" else motion
-        canon = conform(retarget(motion, canonical()), stats)
+        canon = ground(retarget(motion, canonical()), stats)
         clips.append((f"{info.dataset} {info.name} ({info.content})", canon))
     return clips
 

@@ -30,9 +30,9 @@ def _per_rate(make: Callable[[float | None], object], alpha: float) -> Stylizer:
 
 def canonical_clip(path: str) -> "Motion":
     """A humanoid BVH clip as the stylizers take it: on the canonical skeleton (retargeted when it
-    is another rig's, conformed to the training data's arm rolls and ankle height); a missing or bad
-    file is a one-line :class:`MotionStyleError`."""
-    from motion_style_ros.core.conform import conform
+    is another rig's, its planted ankles at the training data's height; the sessions conform its
+    arm rolls); a missing or bad file is a one-line :class:`MotionStyleError`."""
+    from motion_style_ros.core.conform import ground
     from motion_style_ros.core.motion import Motion
     from motion_style_ros.core.retarget import retarget
     from motion_style_ros.core.skeleton import canonical
@@ -42,7 +42,7 @@ def canonical_clip(path: str) -> "Motion":
     clip = bvh.read(path)
     if is_canonical(clip):  # Bandai Namco files and this package's own output, in centimetres
         return Motion.from_rotations(canonical(), *canonical_arrays(clip, path), clip.fps).check_finite(path)
-    return conform(retarget(clip.to_motion().check_finite(path), canonical()), rotation_stats())
+    return ground(retarget(clip.to_motion().check_finite(path), canonical()), rotation_stats())
 
 
 def default_model(backend: str) -> str:

@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.conform import ANKLES, StreamGround
+from motion_style_ros.core.conform import ANKLES, StreamGround, StreamRolls
 from motion_style_ros.core.features import FEATURE_VERSION, UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.motion import Motion, forward_kinematics
@@ -94,6 +94,7 @@ class RecurrentSession:
         phase_seconds: float = 0.0,
         ground: bool = True,
         pipelined: bool = False,
+        conform: bool = True,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -105,7 +106,7 @@ class RecurrentSession:
                 f"{path}: not a recurrent stylizer (no inputs {', '.join(sorted(missing))})"
             )
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                           foot_lock, ground, pipelined)
+                           foot_lock, ground, pipelined, conform=conform)
         self._state = np.zeros((self.performers, int(card["state_size"])), dtype=np.float32)
         if not (isinstance(phase_seconds, (int, float)) and 0.0 <= phase_seconds < 1.0 / self.fps):
             raise MotionStyleError(f"phase_seconds must be in [0, {1.0 / self.fps:g}), got {phase_seconds!r}")
@@ -114,7 +115,7 @@ class RecurrentSession:
 
     def _setup_stream(self, card: dict, performers: int, input_fps: float | None, blend_seconds: float,
                       gap_seconds: float, follow_seconds: float | None, foot_lock: bool, ground: bool,
-                      pipelined: bool, delay_frames: int = 0) -> None:
+                      pipelined: bool, delay_frames: int = 0, conform: bool = True) -> None:
         """Everything of the stream that does not depend on the model: rates and latency (plus
         ``delay_frames`` model frames of the model's own, and an input frame when ``pipelined``),
         controls, feature encoder and decoder, foot locking."""
@@ -142,8 +143,9 @@ class RecurrentSession:
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
         self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
         self._standing = Standing(self.performers, self.fps, self.skeleton) if foot_lock else None
-        self._ground = (StreamGround(self.performers, self.fps, rotation_stats()["ankle_height"])
-                        if ground else None)
+        stats = rotation_stats()
+        self._ground = StreamGround(self.performers, self.fps, stats["ankle_height"]) if ground else None
+        self._rolls = StreamRolls(self.performers, self.fps, stats, self.skeleton) if conform else None
         self._ankle_joints = [self.skeleton.index(n) for n in ANKLES]  # what grounding and foot locks read
         self._fresh = np.ones(self.performers, dtype=bool)
         self._phase = 0.0
@@ -165,11 +167,15 @@ class RecurrentSession:
         self.catch_up()
         self._controls.set_mix(style, weight, performer)
 
-    def reset(self, performer: int | None = None) -> None:
+    def reset(self, performer: int | None = None, recalibrate: bool = False) -> None:
         """Start one performer or all afresh at their next frame: learned initial state, the
-        stylized root snapped back to the input's, controls at their targets."""
+        stylized root snapped back to the input's, controls at their targets; with
+        ``recalibrate``, the stream's conditioning (arm rolls) is estimated again too (a new rig:
+        the rolls otherwise hold across resets and gaps)."""
         self.catch_up()
         which = self._controls.which(performer)
+        if recalibrate and self._rolls is not None:
+            self._rolls.clear(which)
         self._fresh[which] = True
         self._encoder.reset(which)
 
@@ -226,6 +232,8 @@ class RecurrentSession:
         self.set_alpha(alpha)
         self.set_mix(None, 0.0)
         self.restart()
+        if self._rolls is not None:  # offline, the rolls come from the whole clip at once
+            self._rolls.calibrate(0, motion)
         roots = motion.positions[:, self.skeleton.pelvis]
         frames = [self.step(motion.rotations[t : t + 1], roots[t : t + 1], t / motion.fps)
                   for t in range(motion.n_frames)]
@@ -257,25 +265,37 @@ class RecurrentSession:
             self._ticks += 1
         self._stamp, self._input = stamp, (q, p)
 
-    def _grounded(self, q: np.ndarray, p: np.ndarray, fresh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Features of the frame moved down by each performer's ground offset, and the offsets as
-        lifts ``(P, 3)`` to add back to the output (see the module docstring)."""
-        if self._ground is None:
-            return self._encoder(q, p), np.zeros((self.performers, 3))
-        if fresh.any():
-            positions = np.broadcast_to(self.skeleton.offsets, q.shape[:-1] + (3,)).copy()
-            positions[:, self.skeleton.pelvis] = p
-            _, g_pos = forward_kinematics(self.skeleton, q, positions, joints=[])
-            self._ground.start(g_pos[:, self._ankle_joints], fresh)
-        lift = self._ground.offset[:, None] * UP
-        features = self._encoder(q, p - lift)
-        self._ground.update(self._encoder.positions[:, self._ankle_joints] + lift[:, None])
+    def _conditioned(self, q: np.ndarray, p: np.ndarray, fresh: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """Features of the frame as the training data would show it (arm rolls conformed, moved
+        down by each performer's ground offset), and the offsets as lifts ``(P, 3)`` to add back
+        to the output (see the module docstring)."""
+        conformed = q if self._rolls is None else self._rolls.conform(q)
+        lift = np.zeros((self.performers, 3))
+        if self._ground is not None:
+            if fresh.any():
+                positions = np.broadcast_to(self.skeleton.offsets, q.shape[:-1] + (3,)).copy()
+                positions[:, self.skeleton.pelvis] = p
+                _, g_pos = forward_kinematics(self.skeleton, q, positions, joints=[])
+                self._ground.start(g_pos[:, self._ankle_joints], fresh)
+            lift = self._ground.offset[:, None] * UP
+        features = self._encoder(conformed, p - lift)
+        if self._ground is not None:
+            self._ground.update(self._encoder.positions[:, self._ankle_joints] + lift[:, None])
+        if self._rolls is not None:
+            self._rolls.observe(q, self._encoder.positions)
         return features, lift
+
+    def _emit(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
+        """Keep a model frame's output at stream time ``t``, in the stream's own joint frames."""
+        if self._rolls is not None:
+            q = self._rolls.undo(q)
+        self._outputs = [*self._outputs[-1:], (t, q, p)]
 
     def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
         """One model frame for all performers at stream time ``t``."""
         fresh = self._fresh.copy()
-        features, lift = self._grounded(q, p, fresh)
+        features, lift = self._conditioned(q, p, fresh)
         if fresh.any():
             self._decoder.start(*self._encoder.facing(), which=fresh)
             self._controls.snap(fresh)
@@ -291,7 +311,7 @@ class RecurrentSession:
         self._fresh[:] = False
         output = out["output"] if self._standing is None else self._standing(out["output"], features)
         frame = self._placed(self._decoder(output), self._encoder.positions[:, self._ankle_joints])
-        self._outputs = [*self._outputs[-1:], (t, frame[0], frame[1] + lift)]
+        self._emit(t, frame[0], frame[1] + lift)
 
     def _placed(self, frame: tuple[np.ndarray, np.ndarray], ankles: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:

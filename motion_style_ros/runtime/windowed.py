@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from motion_style_ros.core.conform import conform_rolls
 from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.core.features import encode
 from motion_style_ros.core.motion import Motion
@@ -111,6 +112,7 @@ class WindowedSession(RecurrentSession):
         ground: bool = True,
         seed_spread: float = 1.0,
         pipelined: bool = False,
+        conform: bool = True,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -128,7 +130,7 @@ class WindowedSession(RecurrentSession):
         self.mapping = OnnxModel(companions["mapping"], threads)
         self.style_encoder = OnnxModel(companions["style_encoder"], threads)
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                           foot_lock, ground, pipelined, delay_frames=self.lookahead)
+                           foot_lock, ground, pipelined, delay_frames=self.lookahead, conform=conform)
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
         self.seed_spread = _spread(seed_spread)
@@ -188,6 +190,8 @@ class WindowedSession(RecurrentSession):
             raise MotionStyleError("reference clip has NaN or infinite values")
         if motion.fps != self.fps:
             motion = resample(motion, self.fps)
+        if self._rolls is not None:  # the encoder reads rotations: in the training data's frames
+            motion = conform_rolls(motion, self._rolls.stats)
         if motion.n_frames < self.window:
             raise MotionStyleError(
                 f"reference clip too short: {motion.n_frames} frames at {self.fps:g} fps; it needs at "
@@ -228,7 +232,7 @@ class WindowedSession(RecurrentSession):
         """One model frame for all performers at stream time ``t``; emits frame ``t - lookahead``."""
         n, lookahead = self._n, self.lookahead
         fresh = self._fresh.copy()
-        features, lift = self._grounded(q, p, fresh)
+        features, lift = self._conditioned(q, p, fresh)
         self._history[:, :-1] = self._history[:, 1:]
         self._history[:, -1] = features
         self._ola.shift()
@@ -265,7 +269,7 @@ class WindowedSession(RecurrentSession):
         self._n += 1
         frame = self._placed(self._decoder(frames), self._ankles[np.arange(self.performers), slot])
         shown_lift = self._lifts[np.arange(self.performers), slot]  # the lift of the frame emitted
-        self._outputs = [*self._outputs[-1:], (t - lookahead / self.fps, frame[0], frame[1] + shown_lift)]
+        self._emit(t - lookahead / self.fps, frame[0], frame[1] + shown_lift)
 
     # --- codes --------------------------------------------------------------------------------
 
