@@ -10,7 +10,15 @@ from motion_style_ros.core.retarget import tpose
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import datasets as ds
-from motion_style_ros.io.joint_state import JointStateLayout, default_names
+from motion_style_ros.io.joint_state import (
+    FINGER_BONES,
+    FrameDelay,
+    JointStateLayout,
+    default_names,
+    rotation_names,
+    rotation_values,
+    rotations_from_values,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUTS = ROOT / "config" / "layouts"
@@ -150,6 +158,7 @@ def test_robot_map_round_trip_ignores_extra_joints(clip):
     ("joints:\n  - {name: a}", "needs 'name' and 'dof'"),
     ("unknown_names: maybe\njoints:\n  - {name: a, dof: root_tx}", "allowed: error, ignore"),
     ("joint:\n  - {name: a, dof: root_tx}", "'joints' list"),
+    ("passthrough: '*'\njoints:\n  - {name: a, dof: root_tx}", "list of name patterns"),
 ])
 def test_bad_yaml_names_the_file_and_problem(tmp_path, text, problem):
     path = tmp_path / "bad_map.yaml"
@@ -163,3 +172,46 @@ def test_bad_yaml_names_the_file_and_problem(tmp_path, text, problem):
 def test_missing_yaml_file(tmp_path):
     with pytest.raises(MotionStyleError, match="nope.yaml"):
         JointStateLayout.from_yaml(tmp_path / "nope.yaml")
+
+
+def test_finger_names_pass_through_the_canonical_layout_and_its_yaml(clip, layout):
+    fingers = rotation_names(FINGER_BONES[:2]) + ["Jaw_rx", "Jaw_ry", "Jaw_rz"]
+    values = layout.encode(clip.rotations[10], clip.root_positions[10])
+    names = layout.names + fingers
+    extra = np.linspace(-1.0, 1.0, len(fingers))
+    for lay in (layout, JointStateLayout.from_yaml(LAYOUTS / "canonical.yaml")):
+        rotations, root = lay.decode(names, np.concatenate([values, extra]))
+        np.testing.assert_allclose(lay.encode(rotations, root), values, atol=1e-9)
+        assert lay.passes("LeftThumbProximal_rx") and not lay.passes("Spine_rx")
+        with pytest.raises(MotionStyleError, match="unknown joint names \\['Tail_rx'\\]"):
+            lay.decode(names + ["Tail_rx"], np.concatenate([values, extra, [0.0]]))
+
+
+def test_rotation_values_use_the_layout_convention(clip, layout):
+    # A body bone's values through rotation_values are the layout's own for that bone.
+    rotations = clip.rotations[20]
+    values = dict(zip(layout.names, layout.encode(rotations, clip.root_positions[20])))
+    j = canonical().index("LowerArm_L")
+    np.testing.assert_allclose(rotation_values(rotations[j][None]),
+                               [values[f"LowerArm_L_{a}"] for a in ("rx", "ry", "rz")], atol=1e-12)
+    back = rotations_from_values(rotation_values(rotations[j][None]))
+    assert rot.angle_between(back[0], rotations[j]) < 1e-9
+
+
+def test_frame_delay_gives_the_frame_nearest_the_moment_shown():
+    delay = FrameDelay(gap_seconds=0.5)
+    period = 16_666_667
+    for k in range(5):
+        delay.push(10**9 + k * period, np.array([float(k)]))
+    assert delay.at(10**9 + 4 * period - period)[0] == 3.0  # one frame of latency
+    assert delay.at(10**9 + 4 * period - 25_000_000)[0] == 3.0  # 25 ms: 8.3 from frame 3
+    assert delay.at(10**9 + 4 * period - 50_000_001)[0] == 1.0
+    assert delay.at(10**9 + 2 * period + period // 2)[0] == 2.0  # halfway: the older frame
+    assert delay.at(0)[0] == 0.0  # before the first: the oldest kept
+    delay.push(10**9 + 4 * period + 600_000_000, np.array([9.0]))  # a gap: the stream starts afresh
+    assert delay.at(10**9)[0] == 9.0
+    delay.push(10**9, np.array([7.0]))  # a stamp before the last one: afresh too
+    assert delay.at(10**9 + 5 * period)[0] == 7.0
+    delay.clear()
+    with pytest.raises(IndexError):
+        delay.at(10**9)

@@ -1,5 +1,6 @@
-"""VMC protocol: message parsing, frame assembly and completion, Unity <-> core conversions,
-the canonical <-> Unity rig round trip, and the receiver/sender over real UDP (no ROS)."""
+"""VMC protocol: message parsing, frame assembly however senders bundle, Unity <-> core conversions,
+the canonical <-> Unity rig round trip, rigs of other proportions and rest poses, the bridge's
+in/out link (every bone back as sent), and the receiver/sender over real UDP (no ROS)."""
 
 import queue
 import socket
@@ -15,6 +16,8 @@ from motion_style_ros.core.retarget import tpose
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import vmc
+from motion_style_ros.io.joint_state import rotations_from_values
+from vmc_helpers import BLENDSHAPES, as_motion, sender_frames, unity_humanoid
 
 RNG = np.random.default_rng(7)
 
@@ -96,7 +99,7 @@ def test_assembler_frames_from_bundles_and_time_messages():
     got = asm.feed_datagram(message(vmc.TIME_ADDRESS, 1.0))
     assert len(got) == 1
     np.testing.assert_allclose(got[0].bones["LeftHand"][1], frames[1].bones["LeftHand"][1], atol=1e-6)
-    assert asm.counts == {"frames": 2, "malformed": 0, "dropped": 0, "ignored": 0}
+    assert asm.counts == {"frames": 2, "malformed": 0, "incomplete": 0, "ignored": 0}
 
 
 def test_missing_bones_complete_from_last_pose_and_incomplete_start_is_dropped():
@@ -104,8 +107,9 @@ def test_missing_bones_complete_from_last_pose_and_incomplete_start_is_dropped()
     asm = vmc.VmcFrameAssembler()
     partial = vmc.VmcFrame({b: v for b, v in frames[0].bones.items() if b != "LeftHand"})
     assert asm.feed_datagram(vmc.frame_bundle(partial, 0.0).dgram) == []
-    assert asm.counts["dropped"] == 1
+    # The next frame's first message ends it, and a hand is still unknown: counted, not sent.
     assert len(asm.feed_datagram(vmc.frame_bundle(frames[0], 0.1).dgram)) == 1
+    assert asm.counts["incomplete"] == 1
     partial = vmc.VmcFrame({b: v for b, v in frames[1].bones.items() if b not in ("LeftHand", "Head")})
     (got,) = asm.feed_datagram(vmc.frame_bundle(partial, 0.2).dgram)
     for b in ("LeftHand", "Head"):  # from frame 0
@@ -132,9 +136,10 @@ def test_garbage_is_counted_and_dropped():
     asm.feed_datagram(vmc.frame_bundle(frames[0], 0.0).dgram)
     for data in GARBAGE.values():
         assert asm.feed_datagram(data) == []
-    assert asm.feed_datagram(message("/VMC/Ext/Blend/Val", "Joy", 1.0)) == []
-    assert asm.feed_datagram(message(vmc.BONE_ADDRESS, "LeftThumbProximal", *[0.0] * 6, 1.0)) == []
-    assert asm.counts["malformed"] == len(GARBAGE)
+    assert asm.feed_datagram(message("/not/vmc", 1.0)) == []
+    assert asm.feed_datagram(message(vmc.BONE_ADDRESS, "Tail", *[0.0] * 6, 1.0)) == []
+    assert asm.feed_datagram(message(vmc.BLEND_ADDRESS, "Joy", float("nan"))) == []
+    assert asm.counts["malformed"] == len(GARBAGE) + 1
     assert asm.counts["ignored"] == 2
     (got,) = asm.feed_datagram(vmc.frame_bundle(frames[1], 0.1).dgram)
     np.testing.assert_allclose(got.bones["Hips"][0], frames[1].bones["Hips"][0], atol=1e-6)
@@ -226,3 +231,259 @@ def test_receiver_and_sender_over_udp():
         for b, (p, q) in f.bones.items():
             np.testing.assert_allclose(r.bones[b][0], p, atol=1e-6)
             np.testing.assert_allclose(r.bones[b][1], q, atol=1e-6)
+
+
+# --- frames however the sender bundles them ------------------------------------------------------
+
+def _messages(frame, time):
+    """A frame's messages in a performer's order (root, bones, blendshapes, Apply, OK, T)."""
+    from pythonosc import osc_packet
+
+    return [m.message for m in osc_packet.OscPacket(vmc.frame_bundle(frame, time).dgram).messages]
+
+
+def _bundle(messages):
+    return vmc._bundle(messages).dgram
+
+
+def _styles(frames):
+    """Datagrams per bundling style of the same frames."""
+    per_frame = [_messages(f, k / 60) for k, f in enumerate(frames)]
+    t_first = [m[-1:] + m[:-1] for m in per_frame]
+    no_time = [[x for x in m if x.address != vmc.TIME_ADDRESS] for m in per_frame]
+    return {
+        "one bundle per frame": [_bundle(m) for m in per_frame],
+        "message per bundle": [_bundle([x]) for m in per_frame for x in m],
+        "loose messages": [x.dgram for m in per_frame for x in m],
+        "three bundles per frame": [_bundle(m[i::3]) for m in per_frame for i in range(3)],
+        "time first, message per bundle": [_bundle([x]) for m in t_first for x in m],
+        "no time, message per bundle": [_bundle([x]) for m in no_time for x in m],
+    }
+
+
+def _assert_frames_are_the_poses(got, frames):
+    assert len(got) == len(frames)  # one frame per pose: no multiplied rate, none lost
+    for g, f in zip(got, frames):  # and no mixed poses: every bone of each frame is that pose's
+        for b, (p, q) in f.bones.items():
+            np.testing.assert_array_equal(g.bones[b][0], p)
+            np.testing.assert_allclose(g.bones[b][1], q, atol=1e-7)
+        assert g.blendshapes == f.blendshapes
+
+
+@pytest.fixture(scope="module")
+def humanoid():
+    return unity_humanoid()
+
+
+@pytest.fixture(scope="module")
+def sent(humanoid):
+    """A sender's frames on an A-pose rig of other proportions: body, fingers, blendshapes."""
+    return sender_frames(random_motion(12, spread=0.3), humanoid)
+
+
+@pytest.mark.parametrize("style", ["one bundle per frame", "message per bundle", "loose messages",
+                                   "three bundles per frame", "time first, message per bundle",
+                                   "no time, message per bundle"])
+def test_a_frame_is_a_whole_pose_however_the_sender_bundles_it(sent, style):
+    datagrams = _styles(sent)[style]
+    asm = vmc.VmcFrameAssembler()
+    got = [f for d in datagrams for f in asm.feed_datagram(d)]
+    if style.startswith("no time") or style == "loose messages" and len(got) < len(sent):
+        # Without a bundle holding a whole frame, the first frame ends with the second one's first
+        # message; the last one ends at the learnt last key.
+        pass
+    _assert_frames_are_the_poses(got, sent)
+    assert asm.counts["malformed"] == asm.counts["incomplete"] == 0
+
+
+def test_a_lost_datagram_neither_mixes_poses_nor_unlearns_the_pattern(sent):
+    per_frame = [_messages(f, k / 60) for k, f in enumerate(sent)]
+    lost_time = per_frame[4][-1]  # the learnt last key of frame 4
+    lost_bone = next(m for m in per_frame[7] if m.params and m.params[0] == "LeftLowerArm")
+    datagrams = [_bundle([x]) for m in per_frame for x in m if x is not lost_time and x is not lost_bone]
+    asm = vmc.VmcFrameAssembler()
+    got = [f for d in datagrams for f in asm.feed_datagram(d)]
+    expected = list(sent)
+    # Frame 7 lacks its LeftLowerArm: completed from frame 6's (the last known one).
+    expected[7] = vmc.VmcFrame({**sent[7].bones, "LeftLowerArm": sent[6].bones["LeftLowerArm"]},
+                               blendshapes=sent[7].blendshapes)
+    _assert_frames_are_the_poses(got, expected)
+    assert asm.last_key == ("time",)
+    assert [f.time for f in got[3:7]] == pytest.approx([3 / 60, 3 / 60, 5 / 60, 6 / 60])
+
+
+# --- the bridge's link: in, and back out on the sender's rig -----------------------------------
+
+def _link_round_trip(frames, delay_frames=0, period_ns=16_666_667):
+    """Frames through VmcLink.receive, the JointState values straight back through send (what the
+    relay node does): the frames a marionette then receives, and the JointStates."""
+    link = vmc.VmcLink()
+    asm = vmc.VmcFrameAssembler()
+    received, states = [], []
+    for k, f in enumerate(asm.feed_datagram(vmc.frame_bundle(f, k / 60).dgram)[0]
+                          for k, f in enumerate(frames)):
+        names, values = link.receive(f, 10**9 + k * period_ns)
+        states.append((names, values))
+        bundle = link.send(names, values, 10**9 + k * period_ns, delay_frames * period_ns, k / 60)
+        received += vmc.VmcFrameAssembler().feed_datagram(bundle.dgram)
+    return received, states, link
+
+
+def _assert_bones_as_sent(got, frame, deg=1e-4, metres=1e-6):
+    assert set(got.bones) == set(frame.bones)  # every bone the sender sent, UpperChest included
+    for b, (p, q) in frame.bones.items():
+        err = np.degrees(rot.angle_between(vmc.unity_to_core_rotation(q),
+                                           vmc.unity_to_core_rotation(got.bones[b][1])))
+        assert err < deg, (b, err)
+        np.testing.assert_allclose(got.bones[b][0], p, atol=metres, err_msg=b)
+
+
+def test_link_returns_every_bone_of_the_sender_rig_as_it_came(humanoid):
+    # An A-pose rig with toes below the ankles, an UpperChest, other proportions, and a v2.1 root
+    # with a turn, a scale and an offset: a relay in the stylizer's place gives it all back.
+    root = (np.array([0.4, 0.1, -0.3]), Rotation.from_euler("y", 35, degrees=True).as_quat(),
+            np.array([1.25, 1.25, 1.25]), np.array([0.1, 0.0, 0.2]))
+    frames = sender_frames(random_motion(6, spread=0.3), humanoid, root=root)
+    got, states, _ = _link_round_trip(frames)
+    for g, f in zip(got, frames):
+        _assert_bones_as_sent(g, f)
+        np.testing.assert_array_equal(g.root[0], f.root[0])
+        np.testing.assert_array_equal(g.root_scale, f.root_scale)
+        np.testing.assert_array_equal(g.root_offset, f.root_offset)
+        assert g.blendshapes == f.blendshapes and g.apply and g.ok == f.ok
+    # Fingers, eyes and jaw travel in the JointState as names of their own, the sender's rotations.
+    names, values = states[2]
+    extra = [n for n in names if n.startswith("LeftIndexProximal_")]
+    assert extra == ["LeftIndexProximal_rx", "LeftIndexProximal_ry", "LeftIndexProximal_rz"]
+    q = rotations_from_values(values[[names.index(n) for n in extra]])
+    expected = vmc.unity_to_core_rotation(frames[2].bones["LeftIndexProximal"][1])
+    assert np.degrees(rot.angle_between(q[0], expected)) < 1e-6
+
+
+def test_link_sends_fingers_and_blendshapes_bit_for_bit_with_the_frame_the_pose_shows(sent):
+    # One frame of latency: the output stamped k shows frame k - 1, and so do its extras.
+    got, _, link = _link_round_trip(sent, delay_frames=1)
+    for k in range(1, len(sent)):
+        shown = sent[k - 1]
+        for b in vmc.EXTRA_BONES:
+            assert got[k].bones[b][1].tolist() == shown.bones[b][1].tolist()
+        assert got[k].blendshapes == shown.blendshapes
+    assert got[0].blendshapes == sent[0].blendshapes  # nothing older yet: the nearest frame
+
+
+def test_link_time_is_what_the_bridge_gives_and_advances(sent):
+    got, _, _ = _link_round_trip(sent)
+    times = [g.time for g in got]
+    assert times == pytest.approx([k / 60 for k in range(len(sent))], abs=1e-6)
+    assert np.all(np.diff(times) > 0)
+
+
+def test_a_stylized_pose_goes_out_on_the_sender_rig(humanoid, sent):
+    """A stylized canonical pose (here: every arm lowered and the root moved) arrives on the
+    sender's rig: its bone directions are the canonical ones, its bone lengths the sender's."""
+    link = vmc.VmcLink()
+    names, values = link.receive(sent[0], 10**9)
+    rotations, root = link.layout.decode(names, values)
+    turn = rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(25.0))
+    rotations = rotations.copy()
+    for j in (canonical().index("UpperArm_L"), canonical().index("UpperArm_R")):
+        rotations[j] = rot.multiply(rotations[j], turn)
+    root = root + np.array([0.1, 0.0, 0.05])
+    styled = link.layout.encode(rotations, root)
+    values = values.copy()
+    values[: len(styled)] = styled
+    (out,) = vmc.VmcFrameAssembler().feed_datagram(link.send(names, values, 10**9, 0, 0.0).dgram)
+    target = Motion.from_rotations(canonical(), rotations[None], root[None], 30.0)
+    back = vmc.VmcDecoder()([out])
+    from motion_style_ros.core.retarget import bone_direction_errors
+
+    _, err = bone_direction_errors(target, back)
+    assert err.max() < 0.01
+    np.testing.assert_allclose(back.root_positions, target.root_positions, atol=1e-5)
+    for b in ("LeftLowerArm", "LeftToes", "Chest", "UpperChest"):  # the sender's own bone offsets
+        np.testing.assert_array_equal(out.bones[b][0], sent[0].bones[b][0])
+    # The arm did turn: the output is not the frame that came in.
+    assert np.degrees(rot.angle_between(vmc.unity_to_core_rotation(out.bones["LeftUpperArm"][1]),
+                                        vmc.unity_to_core_rotation(sent[0].bones["LeftUpperArm"][1]))) > 5
+
+
+def test_root_offset_is_taken_off_and_the_scale_cancels(humanoid):
+    m = random_motion(3, spread=0.3)
+    plain = sender_frames(m, humanoid)
+    offset = (np.array([1.5, 0.2, -0.7]), np.array([0.0, 0.0, 0.0, 1.0]), np.array([2.0, 2.0, 2.0]),
+              np.array([1.5, 0.2, -0.7]))
+    shifted = sender_frames(m, humanoid, root=offset)  # the avatar placed at p - offset: the same
+    a, b = vmc.VmcDecoder()(plain), vmc.VmcDecoder()(shifted)
+    assert_same_motion(a, b, deg=1e-4, metres=1e-5)
+
+
+def test_ok_states_that_say_the_pose_is_not_the_performers_are_counted(sent):
+    link = vmc.VmcLink()
+    with_ok = [dict(ok=(0,)), dict(ok=(1, 1, 0)), dict(ok=(1, 2, 0)), dict(ok=(1, 3, 0, 0))]
+    for k, ok in enumerate(with_ok):
+        frame = vmc.VmcFrame(sent[k].bones, **ok)
+        assert link.receive(frame, 10**9 + k) is None
+    assert link.counts == {"not_loaded": 1, "calibrating": 2, "tracking_lost": 1}
+    assert link.receive(vmc.VmcFrame(sent[0].bones, ok=(1, 0, 0)), 2 * 10**9) is not None  # uncalibrated
+    rig = link.decoder.rig
+    assert link.receive(vmc.VmcFrame(sent[1].bones, ok=(1, 3, 0, 1)), 3 * 10**9) is not None
+    assert link.decoder.rig is not rig  # a calibration finished: the rig is built anew
+
+
+def test_a_unity_rig_with_other_proportions_and_an_a_pose_rest_is_stylized_as_a_canonical_one(
+        datasets, humanoid):
+    from motion_style_ros.io.datasets import index_bandai, load_clip
+    from motion_style_ros.runtime.session import RecurrentSession
+
+    info = next(i for i in index_bandai(datasets) if i.content == "walk")
+    clip = load_clip(info)[:90]
+    decoded = vmc.VmcDecoder(fps=clip.fps)(sender_frames(clip, humanoid))
+    # The stream decodes to the clip itself: rest pose and proportions are the sender's business.
+    assert_same_motion(decoded, clip, deg=0.01, metres=1e-4)
+    session = RecurrentSession(input_fps=clip.fps)
+    a = session.run(clip, "elderly")
+    b = session.run(decoded, "elderly")
+    err = np.degrees(rot.angle_between(a.rotations[:, 1:], b.rotations[:, 1:]))
+    assert err.max() < 0.05, err.max()
+    np.testing.assert_allclose(a.global_positions(), b.global_positions(), atol=1e-3)
+
+
+# --- time and the receiver ---------------------------------------------------------------------
+
+def test_sender_clock_keeps_the_senders_rhythm_and_falls_back_on_arrival():
+    clock = vmc.SenderClock(tolerance=0.1)
+    arrivals = [0, 21_000_000, 30_000_000, 52_000_000]  # bunched by the network
+    stamps = [clock.stamp(k / 60, 5 * 10**9 + a) for k, a in enumerate(arrivals)]
+    assert np.diff(stamps).tolist() == [16_666_667, 16_666_666, 16_666_667]
+    epoch = float(np.float32(1796169856.0))  # an epoch time as float32: it does not advance
+    assert clock.stamp(epoch, 6 * 10**9) == 6 * 10**9
+    assert clock.stamp(epoch, 6 * 10**9 + 16_000_000) == 6 * 10**9 + 16_000_000
+    assert clock.stamp(None, 7 * 10**9) == 7 * 10**9
+    # A sender restarted (its time back near 0) or far off arrival time: anchored anew.
+    assert clock.stamp(0.5, 8 * 10**9) == 8 * 10**9
+    assert clock.stamp(100.0, 8 * 10**9 + 16_000_000) == 8 * 10**9 + 16_000_000
+    assert clock.stamp(100.0 - 1.0, 8 * 10**9) == 8 * 10**9 + 16_000_001  # never backwards
+
+
+def test_a_burst_of_datagrams_is_read_without_kernel_drops(sent):
+    """One second of a message-per-bundle sender at 60 Hz (about 110 datagrams a frame) sent at
+    once, while the frame callback takes its time: every datagram is read, every frame made."""
+    import time
+
+    frames = (sent * 5)[:60]
+    datagrams = [_bundle([x]) for k, f in enumerate(frames) for x in _messages(f, k / 60)]
+    got = []
+    receiver = vmc.VmcReceiver(lambda f: (got.append(f), time.sleep(0.002)), port=0).start()
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as raw:
+            for d in datagrams:
+                raw.sendto(d, receiver.address)
+        deadline = time.monotonic() + 60
+        while len(got) < len(frames) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        receiver.close()
+    counts = receiver.counts
+    assert counts["kernel_dropped"] == 0
+    assert counts["datagrams"] == len(datagrams)
+    assert len(got) == len(frames)

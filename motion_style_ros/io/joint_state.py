@@ -19,12 +19,21 @@ one DOF of the default layout, ``value = scale * default_value + offset``, angle
 the map lacks are an error unless the map says ``unknown_names: ignore`` (a robot publishes joints a
 humanoid map has no use for). Euler angles of the rest pose sit near +-pi for some bones (the legs),
 so a consumer that differentiates angles should unwrap them first.
+
+Names that are not body DOFs but belong to the same frame, such as a VMC avatar's fingers, eyes and
+jaw (``LeftIndexProximal_rx`` ...: the sender's own local rotations, in the same Euler convention),
+ride along: a layout's ``passthrough`` patterns (``fnmatch``; the canonical layout's are
+:data:`VMC_PASSTHROUGH`) accept them, decoding skips them, and a node republishes them with the
+pose they came with (:class:`FrameDelay`: the stylized output of stamp ``S`` shows the input of
+``S - latency``, so its extras are that frame's too).
 """
 
 from __future__ import annotations
 
+import fnmatch
 import functools
 import warnings
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,6 +50,15 @@ AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 _CORE_TO_ROS = [2, 0, 1]
 _ROS_TO_CORE = [1, 2, 0]
 _PELVIS = canonical().pelvis  # looked up once: building the skeleton costs more than a frame's maths
+# Unity HumanBodyBones outside the body the stylizer restyles: fingers, eyes and jaw. A VMC stream's
+# values for them travel as <Bone>_rx/_ry/_rz beside the body (see rotation_values).
+FINGER_BONES = tuple(f"{side}{finger}{part}" for side in ("Left", "Right")
+                     for finger in ("Thumb", "Index", "Middle", "Ring", "Little")
+                     for part in ("Proximal", "Intermediate", "Distal"))
+FACE_BONES = ("LeftEye", "RightEye", "Jaw")
+# (config/layouts/canonical.yaml lists the same patterns.)
+VMC_PASSTHROUGH = tuple(f"{p}_r[xyz]" for p in ("*Thumb*", "*Index*", "*Middle*", "*Ring*", "*Little*",
+                                               "*Eye", "Jaw"))
 
 
 def to_ros(v: np.ndarray) -> np.ndarray:
@@ -65,6 +83,23 @@ def _euler_xyz(q: np.ndarray) -> np.ndarray:
     with warnings.catch_warnings():  # gimbal lock: scipy still returns angles that compose back
         warnings.simplefilter("ignore", UserWarning)
         return rot.to_euler(q, "XYZ")
+
+
+def rotation_names(bones: Sequence[str]) -> list[str]:
+    """``<bone>_rx, _ry, _rz`` for each bone: how extra (pass-through) rotations are named."""
+    return [f"{b}_{a}" for b in bones for a in AXES[3:]]
+
+
+def rotation_values(quats: np.ndarray) -> np.ndarray:
+    """Core-frame quaternions ``(N, 4)`` as ``(3 N,)`` angles, the layout's convention (REP-103 axes,
+    intrinsic X-Y-Z Euler), e.g. a VMC sender's finger rotations relative to its rest pose."""
+    q = np.asarray(quats, dtype=np.float64).reshape(-1, 4)
+    return _euler_xyz(_quat_to_ros(rot.normalize(q))).ravel()
+
+
+def rotations_from_values(values: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`rotation_values`: ``(3 N,)`` angles -> core quaternions ``(N, 4)``."""
+    return _quat_to_core(rot.from_euler(np.asarray(values, dtype=np.float64).reshape(-1, 3), "XYZ"))
 
 
 def default_names(skeleton: Skeleton | None = None) -> list[str]:
@@ -110,8 +145,10 @@ class _Dof:
 class JointStateLayout:
     """The order and meaning of JointState ``name``/``position`` entries for the canonical skeleton."""
 
-    def __init__(self, dofs: Sequence[_Dof], ignore_unknown: bool = False, source: str = "layout"):
+    def __init__(self, dofs: Sequence[_Dof], ignore_unknown: bool = False, source: str = "layout",
+                 passthrough: Sequence[str] = ()):
         self._dofs = tuple(dofs)
+        self.passthrough = tuple(passthrough)  # fnmatch patterns of names that ride along
         self.names: list[str] = [d.name for d in self._dofs]
         self.ignore_unknown = ignore_unknown
         self.source = source
@@ -125,17 +162,25 @@ class JointStateLayout:
     @classmethod
     def canonical(cls) -> "JointStateLayout":
         names = default_names()
-        return cls([_Dof(n, i, 1.0, 0.0) for i, n in enumerate(names)], source="canonical layout")
+        return cls([_Dof(n, i, 1.0, 0.0) for i, n in enumerate(names)], source="canonical layout",
+                   passthrough=VMC_PASSTHROUGH)
+
+    def passes(self, name: str) -> bool:
+        """Whether ``name`` is no DOF of this layout but one of its pass-through names."""
+        return name not in self._by_name and any(fnmatch.fnmatchcase(name, p) for p in self.passthrough)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "JointStateLayout":
         """A layout from a YAML map::
 
             unknown_names: error        # or ignore; optional, default error
+            passthrough: ["*_finger_joint"]   # optional: names that ride along unchanged
             joints:                     # JointState names in publishing order
               - {name: left_knee_joint, dof: LowerLeg_L_rx, scale: -1.0, offset: 0.0}
 
         ``dof`` is a name of the default layout; ``scale`` (non-zero) and ``offset`` are optional.
+        ``passthrough`` lists ``fnmatch`` patterns of names that are accepted beside the joints and
+        passed on with the frame they came with (default: none).
         """
         from ruamel.yaml import YAML, YAMLError
 
@@ -152,9 +197,12 @@ class JointStateLayout:
             raise bad(f"not valid YAML ({' '.join(str(exc).split())})") from None
         if not isinstance(data, dict) or not isinstance(data.get("joints"), list) or not data["joints"]:
             raise bad("expected a mapping with a non-empty 'joints' list")
-        extra = set(data) - {"joints", "unknown_names"}
+        extra = set(data) - {"joints", "unknown_names", "passthrough"}
         if extra:
-            raise bad(f"unknown keys {sorted(extra)}; allowed: joints, unknown_names")
+            raise bad(f"unknown keys {sorted(extra)}; allowed: joints, unknown_names, passthrough")
+        passthrough = data.get("passthrough", [])
+        if not isinstance(passthrough, list) or not all(isinstance(p, str) and p for p in passthrough):
+            raise bad("passthrough must be a list of name patterns (fnmatch), e.g. ['*Proximal_r?']")
         unknown = data.get("unknown_names", "error")
         if unknown not in ("error", "ignore"):
             raise bad(f"unknown_names is {unknown!r}; allowed: error, ignore")
@@ -178,7 +226,7 @@ class JointStateLayout:
                        for v in (scale, offset)) or scale == 0:
                 raise bad(f"{where} ({name}): scale and offset must be finite numbers, scale non-zero")
             dofs.append(_Dof(name, index[dof], float(scale), float(offset)))
-        return cls(dofs, ignore_unknown=unknown == "ignore", source=str(path))
+        return cls(dofs, ignore_unknown=unknown == "ignore", source=str(path), passthrough=passthrough)
 
     def encode(self, rotations: np.ndarray, root_positions: np.ndarray) -> np.ndarray:
         """Positions ``(..., len(names))`` from local rotations ``(..., 22, 4)`` and the pelvis
@@ -200,7 +248,7 @@ class JointStateLayout:
         if len(set(key)) != len(key):
             dup = sorted({n for n in key if key.count(n) > 1})
             raise MotionStyleError(f"{self.source}: duplicate joint names {dup}")
-        unknown = [n for n in key if n not in self._by_name]
+        unknown = [n for n in key if n not in self._by_name and not self.passes(n)]
         if unknown and not self.ignore_unknown:
             raise MotionStyleError(f"{self.source}: unknown joint names {unknown[:5]}"
                                    f"{' ...' if len(unknown) > 5 else ''}; expected {self.names[:3]} ...")
@@ -229,3 +277,36 @@ class JointStateLayout:
         full = _tpose_vector().copy()
         full[self._index] = (ordered - self._offset) / self._scale
         return _decode_default(full)
+
+
+class FrameDelay:
+    """Values that belong to a stream's frames (pass-through names), looked up by stamp.
+
+    A stylized output stamped ``S`` shows the input of ``S - latency``; :meth:`at` gives the values
+    pushed with the frame whose stamp is nearest that moment (the older one on a tie, never one
+    pushed after ``S``), so what rides beside the pose stays in step with it. A stamp more than
+    ``gap_seconds`` after the previous one, or not after it, starts afresh (as a session does).
+    """
+
+    def __init__(self, gap_seconds: float = 0.5, keep: int = 512) -> None:
+        self.gap_ns = round(gap_seconds * 1e9)
+        self._frames: deque[tuple[int, np.ndarray]] = deque(maxlen=keep)
+
+    def clear(self) -> None:
+        self._frames.clear()
+
+    def push(self, stamp_ns: int, values: np.ndarray) -> None:
+        if self._frames and not 0 < stamp_ns - self._frames[-1][0] <= self.gap_ns:
+            self._frames.clear()
+        self._frames.append((stamp_ns, np.asarray(values)))
+
+    def at(self, stamp_ns: int) -> np.ndarray:
+        """The values of the frame nearest ``stamp_ns``; raises IndexError before any push."""
+        best = None
+        for stamp, values in reversed(self._frames):
+            if best is not None and abs(stamp - stamp_ns) > abs(best[0] - stamp_ns):
+                break  # stamps only fall from here: the nearest one is behind us
+            best = (stamp, values)
+        if best is None:
+            raise IndexError("no frame pushed")
+        return best[1]

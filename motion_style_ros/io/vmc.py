@@ -1,10 +1,15 @@
-"""VMC protocol (Virtual Motion Capture, OSC over UDP): receive, assemble, convert and send.
+"""VMC protocol (Virtual Motion Capture v2.7, OSC over UDP): receive, assemble, convert and send.
 
-A VMC performer streams, per frame and usually in one OSC bundle, ``/VMC/Ext/Root/Pos`` (the
-avatar's root transform), one ``/VMC/Ext/Bone/Pos`` per Unity HumanBodyBones bone (local position
-and rotation relative to its parent), ``/VMC/Ext/OK`` and ``/VMC/Ext/T`` (sender time). A frame ends
-with its bundle or with ``/VMC/Ext/T``. Values are in Unity's frame: left-handed, Y up, Z forward,
-X right, metres, quaternions as (x, y, z, w).
+A VMC performer (a mocap or face-tracking app) streams to a marionette (an avatar host), by
+convention on UDP port 39539; the port 39540 is the convention for the other direction (a
+marionette or an assistant talking to the performer) and for a second marionette on the same host.
+Per frame a performer sends ``/VMC/Ext/Root/Pos`` (the avatar's root transform; since v2.1 with a
+scale and an offset), one ``/VMC/Ext/Bone/Pos`` per Unity HumanBodyBones bone (local position and
+rotation relative to its parent; identity is the avatar's rest pose), ``/VMC/Ext/Blend/Val`` per
+blendshape then ``/VMC/Ext/Blend/Apply``, ``/VMC/Ext/OK`` (model, calibration and tracking state)
+and ``/VMC/Ext/T`` (sender time), in one bundle or in many (:class:`VmcFrameAssembler` decides
+where a frame ends). Values are in Unity's frame: left-handed, Y up, Z forward, X right, metres,
+quaternions as (x, y, z, w).
 
 The motion core is right-handed, Y up, the character facing +Z with its left towards +X. Both face
 +Z with Y up, so the core is Unity mirrored in X: ``p_core = M p_unity`` with ``M = diag(-1, 1, 1)``.
@@ -13,33 +18,48 @@ angle's magnitude and turns the axis ``a`` into ``M a`` with the sense reversed 
 axis ``(-ax, ay, az)`` with angle ``-t`` = axis ``(ax, -ay, -az)`` with angle ``t``: the Unity
 quaternion ``(x, y, z, w)`` is the core quaternion ``(w, x, -y, -z)``. Unity's quaternion maths is
 the usual Hamilton formula on these components, which is what the tests check against.
+
+:class:`VmcLink` is what ``vmc_bridge`` does with all this: frames in -> canonical JointStates (the
+fingers, eyes and jaw as names of their own, the blendshapes apart), and stylized JointStates back
+out on the sender's own rig, with everything the stylizer does not restyle sent as it came.
 """
 
 from __future__ import annotations
 
-import socketserver
+import queue
+import socket
 import struct
 import threading
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from pythonosc import osc_bundle_builder, osc_message_builder, osc_packet
-from pythonosc.udp_client import UDPClient
+from pythonosc import osc_bundle, osc_bundle_builder, osc_message, osc_message_builder, osc_packet
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.retarget import MAPS, Retargeter, find_map, tpose
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io.joint_state import (
+    FACE_BONES,
+    FINGER_BONES,
+    JointStateLayout,
+    rotation_names,
+    rotation_values,
+)
 
 DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 39539
+DEFAULT_PORT = 39539  # a marionette listens here (the bridge, for the performer app)
+DEFAULT_SEND_PORT = 39540  # where the bridge sends: a marionette on the same host, by convention
 ROOT_ADDRESS = "/VMC/Ext/Root/Pos"
 BONE_ADDRESS = "/VMC/Ext/Bone/Pos"
 TIME_ADDRESS = "/VMC/Ext/T"
 OK_ADDRESS = "/VMC/Ext/OK"
+BLEND_ADDRESS = "/VMC/Ext/Blend/Val"
+APPLY_ADDRESS = "/VMC/Ext/Blend/Apply"
+RECEIVE_BUFFER = 4 * 1024 * 1024  # bytes of socket buffer asked for (the kernel may cap it: rmem_max)
 
 # Unity's humanoid body bones, parents first; optional bones hang off their nearest present ancestor.
 UNITY_PARENTS: dict[str, str | None] = {
@@ -56,6 +76,17 @@ for _side in ("Left", "Right"):
         f"{_side}UpperLeg": "Hips", f"{_side}LowerLeg": f"{_side}UpperLeg",
         f"{_side}Foot": f"{_side}LowerLeg", f"{_side}Toes": f"{_side}Foot",
     })
+# The other HumanBodyBones: not restyled, passed through. Fingers hang off the hands, eyes and jaw
+# off the head.
+EXTRA_PARENTS: dict[str, str] = {
+    **{b: f"{b[:4] if b.startswith('Left') else b[:5]}Hand" for b in FINGER_BONES},
+    **{b: "Head" for b in FACE_BONES},
+}
+EXTRA_BONES = tuple(EXTRA_PARENTS)
+HUMAN_BONES = frozenset(UNITY_PARENTS) | frozenset(EXTRA_PARENTS)
+# /VMC/Ext/OK: model state, then (v2.5) calibration state and mode, then (v2.7) tracking state.
+CALIBRATING = (1, 2)  # waiting for calibration, calibrating: the pose means nothing yet
+CALIBRATED = 3
 # Bones a frame must have before it can drive a skeleton (Unity's required humanoid bones).
 REQUIRED_BONES = tuple(
     MAPS["unity"].joints[c][0]
@@ -88,8 +119,14 @@ def core_to_unity_rotation(q_wxyz: np.ndarray) -> np.ndarray:
     return np.stack([q[..., 1], -q[..., 2], -q[..., 3], q[..., 0]], axis=-1)
 
 
+
+
 class VmcMessageError(ValueError):
     """A VMC message whose arguments do not fit its address."""
+
+
+def _is_number(x: object) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
 def parse_transform(
@@ -105,93 +142,221 @@ def parse_transform(
     name, *numbers = args
     if not isinstance(name, str) or not name:
         raise VmcMessageError(f"first argument must be a bone name, got {name!r}")
-    if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in numbers):
+    if not all(_is_number(x) for x in numbers):
         raise VmcMessageError(f"{name}: non-numeric values {numbers!r}")
-    values = np.asarray(numbers[:7], dtype=np.float64)
+    values = np.asarray(numbers, dtype=np.float64)
     if not np.isfinite(values).all():
         raise VmcMessageError(f"{name}: non-finite values")
-    norm = np.linalg.norm(values[3:])
+    norm = np.linalg.norm(values[3:7])
     if norm < 1e-6:
         raise VmcMessageError(f"{name}: zero quaternion")
-    return name, values[:3], values[3:] / norm
+    return name, values[:3], values[3:7] / norm
+
+
+def _root_extension(args: Sequence[object]) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Root/Pos v2.1's scale and offset (None when absent); a scale must not be zero."""
+    if len(args) != 14:
+        return None, None
+    scale, offset = np.asarray(args[8:11], dtype=np.float64), np.asarray(args[11:14], dtype=np.float64)
+    if np.any(np.abs(scale) < 1e-9):
+        raise VmcMessageError(f"{ROOT_ADDRESS}: zero scale {scale.tolist()}")
+    return scale, offset
+
+
+def build_message(address: str, args: Sequence[object]) -> osc_message.OscMessage:
+    """An OSC message; floats go as float32 (``f``), as VMC senders send them."""
+    msg = osc_message_builder.OscMessageBuilder(address)
+    for a in args:
+        msg.add_arg(a)
+    return msg.build()
 
 
 @dataclass(frozen=True)
 class VmcFrame:
-    """One complete pose as received, in Unity's frame: bone -> (local position, (x, y, z, w))."""
+    """One complete pose as received, in Unity's frame.
+
+    ``bones``: every HumanBodyBones bone known, name -> (local position, (x, y, z, w)) as sent (unit
+    length to the sender's precision); ``root``
+    and its v2.1 ``root_scale``/``root_offset``; ``blendshapes`` (the Val messages of this frame) and
+    whether it ended them with ``apply``; ``ok`` (the last /VMC/Ext/OK arguments); ``time`` (the last
+    /VMC/Ext/T). ``raw`` keeps the messages as they came (bone names, ``"root"``, ``"ok"``), and
+    ``passthrough`` this frame's Val, Apply, /VMC/Thru/* and other messages in arrival order, so that
+    what is not restyled can be sent on bit for bit.
+    """
 
     bones: dict[str, tuple[np.ndarray, np.ndarray]]
     root: tuple[np.ndarray, np.ndarray] = field(default_factory=lambda: (np.zeros(3), _IDENTITY_XYZW))
     time: float | None = None
+    root_scale: np.ndarray | None = None
+    root_offset: np.ndarray | None = None
+    blendshapes: dict[str, float] = field(default_factory=dict)
+    apply: bool = False
+    ok: tuple[int, ...] | None = None
+    raw: dict[str, osc_message.OscMessage] = field(default_factory=dict)
+    passthrough: tuple[osc_message.OscMessage, ...] = ()
 
 
 class VmcFrameAssembler:
-    """Turns a stream of VMC messages into complete frames.
+    """Turns a stream of VMC messages into complete frames, however the sender bundles them.
+
+    Senders bundle differently: one bundle per frame (VSeeFace, vmcp's one-``send()``-per-frame),
+    a frame over several bundles (Virtual Motion Capture splits its bones), or one message per
+    bundle (vmcp when each message gets its own ``send()``). A bundle end therefore ends a frame
+    only when the bundle held every required bone. Otherwise the frame is the run of messages
+    between two repetitions of the sender's pattern: each message has a key (Root/Pos, a bone's
+    name, Blend/Apply, OK, T; Blend/Val and pass-through messages belong to the frame they arrive
+    in), a key that the frame already holds starts the next frame, and the key that came last before
+    such a repetition is learnt as the sender's last one: once known, it ends a frame at once, so
+    no frame waits for the next one. A sender that changes its order is learnt again (a new last
+    key is taken when two frames in a row agree on it, so a lost datagram does not unlearn it).
+    Frames are never cut by time: a frame whose last message is lost ends with the next frame's
+    first one, late but whole.
 
     Each frame holds the last known value of every bone seen so far, so a frame that misses bones is
-    completed from the previous pose. Frames end at a bundle's end or at ``/VMC/Ext/T``; a frame is
-    emitted only once every required bone has been seen (before that it is counted as dropped).
-    A malformed message is dropped on its own; the rest of its bundle still makes a frame.
-    ``counts``: frames, malformed (unparsable packets, bad arguments), dropped (frames before every
-    required bone was known), ignored (other addresses, non-body bones such as fingers).
+    completed from the previous pose; it is emitted once every required bone has been seen (before
+    that it is counted as ``incomplete``). A malformed message is dropped on its own (``malformed``,
+    as are unparsable packets); the rest of its bundle still makes a frame. Messages outside VMC
+    and bone names outside HumanBodyBones are ``ignored``.
     """
 
     def __init__(self, required: Sequence[str] = REQUIRED_BONES) -> None:
         self.required = tuple(required)
         self.bones: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.raw: dict[str, osc_message.OscMessage] = {}
         self.root: tuple[np.ndarray, np.ndarray] = (np.zeros(3), _IDENTITY_XYZW)
+        self.root_scale: np.ndarray | None = None
+        self.root_offset: np.ndarray | None = None
         self.time: float | None = None
-        self.counts: Counter[str] = Counter(frames=0, malformed=0, dropped=0, ignored=0)
+        self.ok: tuple[int, ...] | None = None
+        self.counts: Counter[str] = Counter(frames=0, malformed=0, incomplete=0, ignored=0)
+        self.last_key: tuple[str, ...] | None = None
+        self._candidate: tuple[str, ...] | None = None
+        self._start_frame()
+
+    def _start_frame(self) -> None:
+        self._keys: set[tuple[str, ...]] = set()
+        self._previous_key: tuple[str, ...] | None = None
+        self._blend: dict[str, float] = {}
+        self._apply = False
+        self._passthrough: list[osc_message.OscMessage] = []
         self._pending = False
 
-    def feed(self, address: str, args: Sequence[object]) -> VmcFrame | None:
-        """Take one message; returns a frame when the message ends one."""
+    def feed(self, address: str, args: Sequence[object],
+             message: osc_message.OscMessage | None = None) -> list[VmcFrame]:
+        """Take one message (``message``: the parsed OSC message, kept to send on as it came);
+        returns the frames it completed (none, one, or the previous one and a one-message one)."""
         try:
-            if address == BONE_ADDRESS:
-                name, p, q = parse_transform(args)
-                if name not in UNITY_PARENTS:  # fingers, eyes, jaw: valid, but not ours
-                    self.counts["ignored"] += 1
-                    return None
-                self.bones[name] = (p, q)
-                self._pending = True
-            elif address == ROOT_ADDRESS:
-                _, p, q = parse_transform(args, extra=(0, 6))
-                self.root = (p, q)
-                self._pending = True
-            elif address == TIME_ADDRESS:
-                if len(args) != 1 or isinstance(args[0], bool) or not isinstance(args[0], (int, float)):
-                    raise VmcMessageError(f"{TIME_ADDRESS} takes one number, got {list(args)!r}")
-                self.time = float(args[0])
-                return self.end_frame()
-            elif address == OK_ADDRESS:
-                if not args or not all(isinstance(a, int) and not isinstance(a, bool) for a in args):
-                    raise VmcMessageError(f"{OK_ADDRESS} takes integers, got {list(args)!r}")
-            else:
-                self.counts["ignored"] += 1
+            key = self._key(address, args)
         except VmcMessageError:
             self.counts["malformed"] += 1
+            return []
+        if key is None:  # a message that only rides along, or one that is not ours
+            if address.startswith("/VMC/") and address not in (BONE_ADDRESS,):
+                self._passthrough.append(message or build_message(address, args))
+                self._pending = True
+                if address == BLEND_ADDRESS:
+                    self._blend[args[0]] = float(args[1])
+            else:
+                self.counts["ignored"] += 1
+            return []
+        frames = []
+        if key in self._keys:  # the pattern starts again: the frame before ended without its last key
+            self._learn(self._previous_key)
+            frames.append(self.end_frame())
+        self._take(key, address, args, message)
+        self._keys.add(key)
+        self._previous_key = key
+        if key == self.last_key:
+            frames.append(self.end_frame())
+        return [f for f in frames if f is not None]
+
+    def _key(self, address: str, args: Sequence[object]) -> tuple[str, ...] | None:
+        """The message's key in the sender's pattern (None: no key); validates its arguments."""
+        if address == BONE_ADDRESS:
+            name, _, _ = parse_transform(args)
+            return ("bone", name) if name in HUMAN_BONES else None
+        if address == ROOT_ADDRESS:
+            parse_transform(args, extra=(0, 6))
+            _root_extension(args)
+            return ("root",)
+        if address == TIME_ADDRESS:
+            if len(args) != 1 or not _is_number(args[0]) or not np.isfinite(args[0]):
+                raise VmcMessageError(f"{TIME_ADDRESS} takes one number, got {list(args)!r}")
+            return ("time",)
+        if address == OK_ADDRESS:
+            if not 1 <= len(args) <= 4 or not all(isinstance(a, int) and not isinstance(a, bool)
+                                                  for a in args):
+                raise VmcMessageError(f"{OK_ADDRESS} takes 1 to 4 integers, got {list(args)!r}")
+            return ("ok",)
+        if address == APPLY_ADDRESS:
+            return ("apply",)
+        if address == BLEND_ADDRESS:
+            if len(args) != 2 or not isinstance(args[0], str) or not _is_number(args[1]) \
+                    or not np.isfinite(args[1]):
+                raise VmcMessageError(f"{BLEND_ADDRESS} takes a name and a number, got {list(args)!r}")
         return None
 
+    def _take(self, key: tuple[str, ...], address: str, args: Sequence[object],
+              message: osc_message.OscMessage | None) -> None:
+        message = message or build_message(address, args)
+        if key[0] == "bone":  # kept as sent (exactly; unit length only to float precision)
+            self.bones[key[1]] = (np.asarray(args[1:4], dtype=np.float64),
+                                  np.asarray(args[4:8], dtype=np.float64))
+            self.raw[key[1]] = message
+        elif key[0] == "root":
+            self.root = (np.asarray(args[1:4], dtype=np.float64), np.asarray(args[4:8], dtype=np.float64))
+            self.root_scale, self.root_offset = _root_extension(args)
+            self.raw["root"] = message
+        elif key[0] == "time":
+            self.time = float(args[0])
+        elif key[0] == "ok":
+            self.ok = tuple(int(a) for a in args)
+            self.raw["ok"] = message
+        elif key[0] == "apply":
+            self._apply = True
+            self._passthrough.append(message)
+        self._pending = True
+
+    def _learn(self, key: tuple[str, ...] | None) -> None:
+        if key is None or key == self.last_key:
+            self._candidate = None
+        elif self.last_key is None or key == self._candidate:
+            self.last_key, self._candidate = key, None
+        else:
+            self._candidate = key
+
     def end_frame(self) -> VmcFrame | None:
-        """Close the frame being received (a bundle ended); None if nothing changed or incomplete."""
+        """Close the frame being received; None if nothing came or a required bone is unknown."""
         if not self._pending:
+            self._start_frame()
             return None
-        self._pending = False
+        blend, apply, passthrough = self._blend, self._apply, tuple(self._passthrough)
+        self._start_frame()
         if any(b not in self.bones for b in self.required):
-            self.counts["dropped"] += 1
+            self.counts["incomplete"] += 1
             return None
         self.counts["frames"] += 1
-        return VmcFrame(dict(self.bones), self.root, self.time)
+        return VmcFrame(dict(self.bones), self.root, self.time, self.root_scale, self.root_offset,
+                        blend, apply, self.ok, dict(self.raw), passthrough)
 
     def feed_datagram(self, data: bytes) -> list[VmcFrame]:
         """Take one UDP datagram (an OSC message or bundle); returns the frames it completed."""
         try:
             packet = osc_packet.OscPacket(data)
-        except (osc_packet.ParseError, ValueError, IndexError, TypeError, struct.error):
+        except (osc_packet.ParseError, ValueError, IndexError, TypeError, struct.error,
+                UnicodeDecodeError):
             self.counts["malformed"] += 1
             return []
-        frames = [self.feed(m.message.address, m.message.params) for m in packet.messages]
-        if data.startswith(b"#bundle"):
+        frames = []
+        names = set()
+        for m in packet.messages:
+            frames += self.feed(m.message.address, m.message.params, m.message)
+            if m.message.address == BONE_ADDRESS and m.message.params:
+                names.add(m.message.params[0])
+        if data.startswith(b"#bundle") and self._pending and all(b in names for b in self.required):
+            # A bundle with every required bone is a frame of its own (one bundle per frame).
+            if self.last_key is None:
+                self.last_key = self._previous_key
             frames.append(self.end_frame())
         return [f for f in frames if f is not None]
 
@@ -215,12 +380,25 @@ def unity_rig(frame: VmcFrame) -> Skeleton:
     return Skeleton(tuple(names), tuple(parents), offsets, pelvis=0)
 
 
+def root_transform(frame: VmcFrame) -> tuple[np.ndarray, np.ndarray]:
+    """The avatar root's position and rotation in the core frame.
+
+    A v2.1 root offset is taken off the position (an MR marionette places the avatar at
+    ``(p - offset) / scale``). The scale (the marionette shrinks the whole avatar by it) is left
+    out: it scales the body and its root motion alike, and retargeting to the canonical
+    proportions takes that out again.
+    """
+    p = frame.root[0] if frame.root_offset is None else frame.root[0] - frame.root_offset
+    return unity_to_core_position(p), rot.normalize(unity_to_core_rotation(frame.root[1]))
+
+
 def rig_motion(rig: Skeleton, frames: Sequence[VmcFrame], fps: float) -> Motion:
     """Frames on ``rig`` in the core frame; the root transform is folded into the hips."""
     pos = unity_to_core_position([[f.bones[b][0] for b in rig.names] for f in frames])
-    q = unity_to_core_rotation([[f.bones[b][1] for b in rig.names] for f in frames])
-    root_p = unity_to_core_position([f.root[0] for f in frames])
-    root_q = unity_to_core_rotation([f.root[1] for f in frames])
+    q = rot.normalize(unity_to_core_rotation([[f.bones[b][1] for b in rig.names] for f in frames]))
+    roots = [root_transform(f) for f in frames]
+    root_p = np.stack([r[0] for r in roots])
+    root_q = np.stack([r[1] for r in roots])
     pos[:, 0] = root_p + rot.rotate(root_q, pos[:, 0])
     q[:, 0] = rot.multiply(root_q, q[:, 0])
     return Motion(rig, q, pos, fps)
@@ -246,9 +424,13 @@ def tpose_rig(source: Skeleton) -> Skeleton:
 class VmcDecoder:
     """Complete VMC frames -> motion on ``target`` (the canonical skeleton by default).
 
-    The sender's rig is built from the first frame and retargeted by bone names and T-pose; its
-    rest pose (identity local rotations) is taken as a T-pose, as on a normalised VRM avatar.
-    :meth:`reset` forgets it, so that the next frame builds it again (another avatar).
+    The sender's rig is built from a frame's bone local positions (its rest offsets: bones do not
+    stretch) and retargeted by bone names and T-pose. Its rest pose is whatever identity local
+    rotations make of those offsets, a T-pose on a normalised VRM avatar, an A-pose or any other on
+    a Unity humanoid: :func:`~motion_style_ros.core.retarget.tpose` works out from the offsets
+    how each bone turns into the T-pose, so proportions and rest pose both come from the stream.
+    The rig is built again when a frame's bones or offsets differ from it (another avatar, a new
+    calibration) and after :meth:`reset`.
     """
 
     def __init__(self, target: Skeleton | None = None, fps: float = 30.0) -> None:
@@ -260,8 +442,17 @@ class VmcDecoder:
     def reset(self) -> None:
         self.rig = self._retarget = None
 
+    def _fits(self, frame: VmcFrame) -> bool:
+        """Whether ``frame`` has the rig's body bones, with its offsets to within 0.1 mm."""
+        rig = self.rig
+        names, _ = _unity_tree(list(frame.bones))
+        if rig is None or tuple(names) != rig.names:
+            return False
+        offsets = unity_to_core_position(np.stack([frame.bones[b][0] for b in names]))
+        return bool(np.abs(offsets - rig.offsets).max() < 1e-4)
+
     def __call__(self, frames: Sequence[VmcFrame]) -> Motion:
-        if self.rig is None:
+        if not self._fits(frames[0]):
             rig = unity_rig(frames[0])
             lengths = [np.linalg.norm(rig.offsets[rig.index(b)])
                        for b in ("LeftLowerLeg", "LeftFoot", "RightLowerLeg", "RightFoot")]
@@ -273,7 +464,8 @@ class VmcDecoder:
 
 
 class VmcEncoder:
-    """Motion on ``source`` (canonical by default) -> VMC frames for a T-posed Unity rig."""
+    """Motion on ``source`` (canonical by default) -> VMC frames for a T-posed Unity rig with the
+    source's proportions (what :class:`VmcLink` sends before it knows the sender's rig)."""
 
     def __init__(self, source: Skeleton | None = None) -> None:
         self.source = source or canonical()
@@ -291,81 +483,357 @@ class VmcEncoder:
         ]
 
 
-def frame_bundle(frame: VmcFrame, time: float) -> osc_bundle_builder.osc_bundle.OscBundle:
-    """One VMC frame as an OSC bundle: root, bones, OK and time (as performers send it)."""
+
+
+def _bundle(messages: Sequence[osc_message.OscMessage]) -> osc_bundle.OscBundle:
     bundle = osc_bundle_builder.OscBundleBuilder(osc_bundle_builder.IMMEDIATELY)
-
-    def add(address: str, args: Sequence[object]) -> None:
-        msg = osc_message_builder.OscMessageBuilder(address)
-        for a in args:
-            msg.add_arg(a)
-        bundle.add_content(msg.build())
-
-    for address, name, (p, q) in [(ROOT_ADDRESS, "root", frame.root)] + [
-        (BONE_ADDRESS, b, v) for b, v in frame.bones.items()
-    ]:
-        add(address, [name, *map(float, p), *map(float, q)])
-    add(OK_ADDRESS, [1])
-    add(TIME_ADDRESS, [float(time)])
+    for m in messages:
+        bundle.add_content(m)
     return bundle.build()
+
+
+def _transform_args(name: str, p: np.ndarray, q: np.ndarray) -> list[object]:
+    return [name, *map(float, p), *map(float, q)]
+
+
+def frame_bundle(frame: VmcFrame, time: float) -> osc_bundle.OscBundle:
+    """One VMC frame as an OSC bundle: root, bones, blendshapes, OK and time (as performers send it)."""
+    root = _transform_args("root", *frame.root)
+    if frame.root_scale is not None:
+        root += [*map(float, frame.root_scale), *map(float, frame.root_offset)]
+    messages = [build_message(ROOT_ADDRESS, root)]
+    messages += [build_message(BONE_ADDRESS, _transform_args(b, p, q)) for b, (p, q) in frame.bones.items()]
+    messages += [build_message(BLEND_ADDRESS, [k, float(v)]) for k, v in frame.blendshapes.items()]
+    if frame.apply or frame.blendshapes:
+        messages.append(build_message(APPLY_ADDRESS, []))
+    messages.append(build_message(OK_ADDRESS, list(frame.ok or (1,))))
+    messages.append(build_message(TIME_ADDRESS, [float(time)]))
+    return _bundle(messages)
 
 
 class VmcSender:
     """Streams frames to a VMC marionette (an avatar host) over UDP, one bundle per frame."""
 
     def __init__(self, host: str, port: int) -> None:
-        self._client = UDPClient(host, port)
+        self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._address = (host, port)
 
     def send(self, frame: VmcFrame, time: float) -> None:
-        self._client.send(frame_bundle(frame, time))
+        self.send_packet(frame_bundle(frame, time))
+
+    def send_packet(self, packet: osc_bundle.OscBundle | osc_message.OscMessage) -> None:
+        try:
+            self._socket.sendto(packet.dgram, self._address)
+        except ConnectionRefusedError:  # an ICMP "port unreachable" from an earlier datagram
+            pass
+
+    def close(self) -> None:
+        self._socket.close()
 
 
-class _Handler(socketserver.BaseRequestHandler):
-    def handle(self) -> None:
-        server: _Server = self.server  # type: ignore[assignment]
-        with server.lock:
-            frames = server.assembler.feed_datagram(self.request[0])
-        for f in frames:
-            server.on_frame(f)
-
-
-class _Server(socketserver.UDPServer):
-    max_packet_size = 65535  # a bundle of every bone can exceed socketserver's 8 KiB default
-
-    def __init__(self, address: tuple[str, int], on_frame: Callable[[VmcFrame], None]) -> None:
-        super().__init__(address, _Handler)
-        self.assembler = VmcFrameAssembler()
-        self.lock = threading.Lock()
-        self.on_frame = on_frame
+_SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)  # Linux: datagrams the kernel dropped, per read
 
 
 class VmcReceiver:
     """A VMC marionette: listens on UDP, assembles frames and hands each to ``on_frame``.
 
-    python-osc parses the packets; its Dispatcher is not used because it silently drops packets it
-    cannot parse and hides bundle boundaries, both of which this needs. ``on_frame`` runs on the
-    receiver's thread.
+    One thread only reads datagrams into a queue, so that the socket buffer (``RECEIVE_BUFFER``
+    asked for; the kernel caps it at ``net.core.rmem_max``) is drained however long a frame's work
+    takes; a second thread parses them (python-osc), assembles frames and calls ``on_frame``.
+    python-osc's Dispatcher is not used: it drops packets it cannot parse without a word and hides
+    bundle boundaries, both of which this needs. On Linux the kernel's count of datagrams it dropped
+    for want of buffer space is read with every datagram (``SO_RXQ_OVFL``) and reported as
+    ``kernel_dropped`` in :attr:`counts`.
     """
 
     def __init__(self, on_frame: Callable[[VmcFrame], None], host: str = DEFAULT_HOST,
-                 port: int = DEFAULT_PORT) -> None:
-        self._server = _Server((host, port), on_frame)
-        self._thread = threading.Thread(target=self._server.serve_forever, daemon=True)
+                 port: int = DEFAULT_PORT, buffer_bytes: int = RECEIVE_BUFFER) -> None:
+        self.on_frame = on_frame
+        self.assembler = VmcFrameAssembler()
+        self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self._socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, buffer_bytes)
+            self._socket.setsockopt(socket.SOL_SOCKET, _SO_RXQ_OVFL, 1)
+        except OSError:
+            pass  # not Linux: no drop count
+        try:
+            self._socket.bind((host, port))
+        except OSError:
+            self._socket.close()
+            raise
+        self._socket.settimeout(0.1)  # the reader checks for close() this often
+        self.buffer_bytes = self._socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        self._queue: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._datagrams = 0
+        self._kernel_dropped = 0
+        self._reader = threading.Thread(target=self._read, name="vmc-reader", daemon=True)
+        self._worker = threading.Thread(target=self._work, name="vmc-frames", daemon=True)
 
     @property
     def address(self) -> tuple[str, int]:
-        return self._server.server_address[:2]
+        return self._socket.getsockname()[:2]
 
     @property
     def counts(self) -> dict[str, int]:
-        with self._server.lock:
-            return dict(self._server.assembler.counts)
+        with self._lock:
+            counts = dict(self.assembler.counts)
+        counts.update(datagrams=self._datagrams, kernel_dropped=self._kernel_dropped)
+        return counts
 
     def start(self) -> VmcReceiver:
-        self._thread.start()
+        self._worker.start()
+        self._reader.start()
         return self
 
+    def _read(self) -> None:
+        space = socket.CMSG_SPACE(4)
+        while not self._stop.is_set():
+            try:
+                data, ancillary, _, _ = self._socket.recvmsg(65535, space)
+            except TimeoutError:
+                continue
+            except OSError:
+                break
+            for level, kind, value in ancillary:
+                if level == socket.SOL_SOCKET and kind == _SO_RXQ_OVFL and len(value) >= 4:
+                    self._kernel_dropped = struct.unpack("=I", value[:4])[0]
+            self._datagrams += 1
+            self._queue.put(data)
+        self._queue.put(None)
+
+    def _work(self) -> None:
+        while (data := self._queue.get()) is not None:
+            with self._lock:
+                frames = self.assembler.feed_datagram(data)
+            for f in frames:
+                self.on_frame(f)
+
     def close(self) -> None:
-        if self._thread.is_alive():
-            self._server.shutdown()
-        self._server.server_close()
+        self._stop.set()
+        if self._reader.is_alive():
+            self._reader.join()
+        else:
+            self._queue.put(None)
+        if self._worker.is_alive():
+            self._worker.join(timeout=5.0)
+        self._socket.close()
+
+
+class SenderClock:
+    """Stamps for a sender's frames: its own ``/VMC/Ext/T`` when that advances, else arrival time.
+
+    A sender's clock spaces its frames as it made them, so stamps taken from it (anchored to the
+    arrival time of a first frame) keep the stream's rhythm however the network or a scheduler
+    bunch the datagrams. A time that does not advance (an epoch time sent as float32 moves in
+    128 s steps) or that strays more than ``tolerance`` seconds from arrival time (a sender
+    restarted, clocks drifting apart) makes that frame stamped with its arrival time and the clock
+    anchored there again. Stamps always increase.
+    """
+
+    def __init__(self, tolerance: float = 0.1) -> None:
+        self.tolerance_ns = round(tolerance * 1e9)
+        self._anchor: tuple[int, float] | None = None
+        self._time: float | None = None
+        self._last = 0
+
+    def stamp(self, sender_time: float | None, now_ns: int) -> int:
+        """The stamp (ns) of a frame with ``sender_time`` (seconds, or None) that completed at
+        ``now_ns``."""
+        stamp = now_ns
+        if sender_time is None or self._time is None or sender_time <= self._time:
+            self._anchor = None  # no time, or one that does not advance: arrival time
+        if sender_time is not None:
+            if self._anchor is not None:
+                stamp = self._anchor[0] + round((sender_time - self._anchor[1]) * 1e9)
+                if abs(stamp - now_ns) > self.tolerance_ns:
+                    self._anchor, stamp = None, now_ns
+            if self._anchor is None:
+                self._anchor = (now_ns, sender_time)
+            self._time = sender_time
+        self._last = max(stamp, self._last + 1)
+        return self._last
+
+
+def usable(frame: VmcFrame) -> str | None:
+    """Why a frame's pose is not to be stylized (its ``/VMC/Ext/OK`` says so), or None.
+
+    ``not_loaded``: no avatar (model state 0); ``calibrating``: waiting for or in calibration
+    (v2.5 calibration state 1 or 2), the pose is the calibration's, not the performer's;
+    ``tracking_lost``: v2.7 tracking state 0. Uncalibrated (0) and calibrated (3) streams are used.
+    """
+    ok = frame.ok
+    if ok is None:
+        return None
+    if ok[0] == 0:
+        return "not_loaded"
+    if len(ok) >= 2 and ok[1] in CALIBRATING:
+        return "calibrating"
+    if len(ok) >= 4 and ok[3] == 0:
+        return "tracking_lost"
+    return None
+
+
+@dataclass(frozen=True)
+class _Received:
+    """What the link published for one frame, kept to send the frame's stylized pose back."""
+
+    stamp_ns: int
+    frame: VmcFrame
+    retarget: Retargeter  # sender rig -> canonical, as used for this frame
+    canonical_rotations: np.ndarray  # (22, 4) global, core frame
+    canonical_hips: np.ndarray  # (3,) hip centre
+    rig_rotations: np.ndarray  # (J, 4) the sender rig's global rotations, root folded in
+    rig_local: np.ndarray  # (J, 4) its local rotations (the root folded into the hips)
+    rig_hips: np.ndarray  # (3,) its hip centre
+    rig_pelvis: np.ndarray  # (3,) its Hips joint
+
+
+def _hip_centre(positions: np.ndarray, joints: dict[str, int]) -> np.ndarray:
+    return 0.5 * (positions[joints["UpperLeg_L"]] + positions[joints["UpperLeg_R"]])
+
+
+class VmcLink:
+    """VMC frames -> canonical JointState values, and stylized ones back to VMC on the sender's rig.
+
+    :meth:`receive` converts a frame (:class:`VmcDecoder`) and keeps it with the stamp it was
+    published under. :meth:`send` takes a stylized JointState, picks the kept frame whose pose that
+    output shows (stamp nearest ``stamp - delay``, the stylizer's latency), and sends the stylized
+    pose as a change of that frame: each body bone mapped to a canonical joint turns in the world
+    as the canonical joint turned (stylized global times input global inverse), the sender's other
+    body bones (e.g. Chest between Spine and UpperChest) keep their local rotations, the hip
+    centre moves as the canonical one did (over the leg-length ratio), and bone local positions,
+    the root transform (with its scale and offset), fingers, eyes, jaw, blendshapes, OK and every
+    pass-through message are that frame's, as they came. So a stylizer that changes nothing
+    returns the sender's frame (to float32), and a stylized pose keeps the sender's rest pose and
+    proportions. ``/VMC/Ext/T`` goes out as the time given to :meth:`send`. Before any frame was
+    received, stylized states go out on a T-posed rig of canonical proportions (:class:`VmcEncoder`).
+    """
+
+    def __init__(self, keep_seconds: float = 2.0) -> None:
+        self.layout = JointStateLayout.canonical()
+        self.decoder = VmcDecoder()
+        self.counts: Counter[str] = Counter()
+        self.keep_ns = round(keep_seconds * 1e9)
+        self._received: deque[_Received] = deque()
+        self._lock = threading.Lock()
+        self._calibration: int | None = None
+        self._fallback: VmcEncoder | None = None
+        self._names: dict[tuple[str, ...], list[str]] = {}
+
+    def reset(self) -> None:
+        """Forget the rig and the kept frames (the next frame builds the rig again)."""
+        self.decoder.reset()
+        with self._lock:
+            self._received.clear()
+
+    def receive(self, frame: VmcFrame, stamp_ns: int) -> tuple[list[str], np.ndarray] | None:
+        """The JointState names and values for ``frame``, or None when its OK state says the pose
+        is not the performer's (counted by reason). Raises MotionStyleError when no rig can be
+        built or the values are not finite (the rig is then built anew from the next frame)."""
+        reason = usable(frame)
+        calibration = frame.ok[1] if frame.ok is not None and len(frame.ok) >= 2 else None
+        if calibration != self._calibration:
+            if calibration == CALIBRATED and self._calibration is not None:
+                self.decoder.reset()  # a new calibration: rest pose and proportions may differ
+            self._calibration = calibration
+        if reason:
+            self.counts[reason] += 1
+            return None
+        try:
+            motion = self.decoder([frame])
+            values = self.layout.encode(motion.rotations[0], motion.root_positions[0])
+            extras = tuple(b for b in EXTRA_BONES if b in frame.bones)
+            if extras:
+                quats = unity_to_core_rotation(np.stack([frame.bones[b][1] for b in extras]))
+                values = np.concatenate([values, rotation_values(quats)])
+            if not np.isfinite(values).all():
+                raise MotionStyleError("VMC frame gave non-finite joint values")
+        except MotionStyleError:
+            self.decoder.reset()
+            raise
+        retarget = self.decoder._retarget
+        canon_rot, canon_pos = motion.global_transforms()
+        rig = self.decoder.rig
+        rig_m = rig_motion(rig, [frame], self.decoder.fps)
+        rig_rot, rig_pos = rig_m.global_transforms()
+        kept = _Received(stamp_ns, frame, retarget, canon_rot[0],
+                         _hip_centre(canon_pos[0], retarget.target_tpose.joints), rig_rot[0],
+                         rig_m.rotations[0],
+                         _hip_centre(rig_pos[0], retarget.source_tpose.joints), rig_pos[0, 0])
+        with self._lock:
+            self._received.append(kept)
+            while stamp_ns - self._received[0].stamp_ns > self.keep_ns or \
+                    stamp_ns < self._received[0].stamp_ns:
+                self._received.popleft()
+        if extras not in self._names:
+            self._names[extras] = self.layout.names + rotation_names(extras)
+        return self._names[extras], values
+
+    @staticmethod
+    def blendshapes(frame: VmcFrame) -> tuple[list[str], np.ndarray]:
+        """The frame's blendshape names and values (its Val messages), as received."""
+        return list(frame.blendshapes), np.array(list(frame.blendshapes.values()), dtype=np.float64)
+
+    def _shown(self, stamp_ns: int) -> _Received | None:
+        with self._lock:
+            if not self._received:
+                return None
+            return min(reversed(self._received), key=lambda r: abs(r.stamp_ns - stamp_ns))
+
+    def send(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int,
+             delay_ns: int, time: float) -> osc_bundle.OscBundle:
+        """The VMC bundle for one stylized JointState stamped ``stamp_ns`` whose pose shows the
+        input of ``stamp_ns - delay_ns``. Raises MotionStyleError for names or values the layout
+        cannot decode."""
+        rotations, root = self.layout.decode(names, positions)
+        shown = self._shown(stamp_ns - delay_ns)
+        if shown is None:
+            self._fallback = self._fallback or VmcEncoder()
+            motion = Motion.from_rotations(canonical(), rotations[None], root[None], 30.0)
+            return frame_bundle(self._fallback(motion)[0], time)
+        if shown.stamp_ns != stamp_ns - delay_ns:
+            self.counts["sent_nearest_frame"] += 1
+        return self._bundle(shown, rotations, root, time)
+
+    def _bundle(self, shown: _Received, rotations: np.ndarray, root: np.ndarray,
+                time: float) -> osc_bundle.OscBundle:
+        ret, frame = shown.retarget, shown.frame
+        rig = ret.source
+        out = Motion.from_rotations(canonical(), rotations[None], root[None], 30.0)
+        out_rot, out_pos = (a[0] for a in out.global_transforms())
+        canon_j, rig_j = ret.target_tpose.joints, ret.source_tpose.joints
+        turn = {rig_j[c]: rot.multiply(out_rot[canon_j[c]],
+                                       rot.conjugate(shown.canonical_rotations[canon_j[c]]))
+                for c in ret.common}
+        g = np.empty_like(shown.rig_rotations)
+        for j, p in enumerate(rig.parents):
+            if j in turn:
+                g[j] = rot.multiply(turn[j], shown.rig_rotations[j])
+            else:
+                g[j] = shown.rig_rotations[j] if p < 0 else rot.multiply(g[p], shown.rig_local[j])
+        hips = shown.rig_hips + (_hip_centre(out_pos, canon_j) - shown.canonical_hips) / ret.scale
+        pelvis = hips - rot.rotate(g[0], rot.rotate(rot.conjugate(shown.rig_rotations[0]),
+                                                    shown.rig_hips - shown.rig_pelvis))
+        root_p, root_q = root_transform(frame)
+        local = np.empty_like(g)
+        local[0] = rot.multiply(rot.conjugate(root_q), g[0])
+        for j in range(1, rig.n_joints):
+            local[j] = rot.multiply(rot.conjugate(g[rig.parents[j]]), g[j])
+        local_q = core_to_unity_rotation(rot.normalize(local))
+        hips_p = core_to_unity_position(rot.rotate(rot.conjugate(root_q), pelvis - root_p))
+        messages = [frame.raw.get("root") or build_message(ROOT_ADDRESS, _transform_args("root", *frame.root))]
+        for j, b in enumerate(rig.names):
+            p = hips_p if j == 0 else frame.bones[b][0]
+            messages.append(build_message(BONE_ADDRESS, _transform_args(b, p, local_q[j])))
+        messages += [frame.raw.get(b) or build_message(BONE_ADDRESS, _transform_args(b, *frame.bones[b]))
+                     for b in EXTRA_BONES if b in frame.bones]
+        if frame.passthrough:
+            messages += list(frame.passthrough)
+        else:  # a frame made, not received
+            messages += [build_message(BLEND_ADDRESS, [k, float(v)]) for k, v in frame.blendshapes.items()]
+            messages += [build_message(APPLY_ADDRESS, [])] if frame.apply else []
+        messages.append(frame.raw.get("ok") or build_message(OK_ADDRESS, [1]))
+        messages.append(build_message(TIME_ADDRESS, [float(time)]))
+        return _bundle(messages)

@@ -32,7 +32,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.io.joint_state import JointStateLayout, to_ros
+from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.nodes import PlayerNode, joint_state, run
 from motion_style_ros.runtime.offline import canonical_clip, default_model
 from motion_style_ros.runtime.session import RecurrentSession
@@ -86,6 +86,10 @@ class Performer:
         self.reported_drops = 0
         self.names: tuple[str, ...] = ()
         self.slots = np.zeros(0, dtype=np.intp)  # input index of each layout name
+        self.extra = np.zeros(0, dtype=np.intp)  # input index of each other name (passed through)
+        # The other names' values go out with the pose they came with: the frame of stamp - latency.
+        self.delay = FrameDelay(session.gap_seconds)
+        self.latency_ns = round(session.latency * 1e9)
         self.angular = np.zeros(0, dtype=bool)  # per input name: an angle to unwrap
         self.clear()
 
@@ -98,6 +102,7 @@ class Performer:
         self.chunk: list[tuple[int, np.ndarray]] = []  # (stamp ns, unwrapped positions)
         self.chunk_frame_id = ""
         self.previous: np.ndarray | None = None  # the last trajectory point, to unwrap against
+        self.delay.clear()
 
     @property
     def dropped(self) -> int:
@@ -296,7 +301,10 @@ class Stylizer(PlayerNode):
             return
         p.last_stamp_ns = stamp_ns
         self._use_names(p, msg.name)
-        out = positions.copy()  # names the layout ignores pass through as they came
+        out = positions.copy()  # names the layout ignores or passes through: as they came, in step
+        if p.extra.size:
+            p.delay.push(stamp_ns, positions[p.extra])
+            out[p.extra] = p.delay.at(stamp_ns - p.latency_ns)
         out[p.slots] = self.layout.encode(rotations, root)
         frame_id = self.settings["frame_id"] or msg.header.frame_id
         p.state_out.publish(joint_state(p.names, out, msg.header.stamp, frame_id))
@@ -332,6 +340,8 @@ class Stylizer(PlayerNode):
         p.names = tuple(names)
         where = {n: i for i, n in enumerate(p.names)}
         p.slots = np.array([where[n] for n in self.layout.names], dtype=np.intp)
+        p.extra = np.setdiff1d(np.arange(len(p.names)), p.slots)
+        p.delay.clear()
         p.angular = np.zeros(len(p.names), dtype=bool)
         p.angular[p.slots] = self.layout.angular
 
@@ -413,7 +423,8 @@ class Stylizer(PlayerNode):
         ms = 1e-6 * np.array([latency for _, latency in p.latencies])
         p50, p99 = (np.percentile(ms, [50, 99]) if len(ms) else (np.nan, np.nan))
         values = {**p.counts, "dropped": dropped, "latency_p50_ms": f"{p50:.3f}",
-                  "latency_p99_ms": f"{p99:.3f}", "model": str(p.session.model.path),
+                  "latency_p99_ms": f"{p99:.3f}", "output_latency_ms": f"{p.latency_ns * 1e-6:.3f}",
+                  "model": str(p.session.model.path),
                   "backend": self.backend, "input": p.input,
                   **{k: self.settings[k] for k in ("target_style", "alpha", "mix_style", "mix_weight",
                                               "latent_seed", "seed_spread", "reference")}}
