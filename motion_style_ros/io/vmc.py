@@ -624,18 +624,23 @@ class VmcReceiver:
 class SenderClock:
     """Stamps for a sender's frames: its own ``/VMC/Ext/T`` when that advances, else arrival time.
 
-    A sender's clock spaces its frames as it made them, so stamps taken from it (anchored to the
-    arrival time of a first frame) keep the stream's rhythm however the network or a scheduler
-    bunch the datagrams. A time that does not advance (an epoch time sent as float32 moves in
-    128 s steps) or that strays more than ``tolerance`` seconds from arrival time (a sender
-    restarted, clocks drifting apart) makes that frame stamped with its arrival time and the clock
-    anchored there again. Stamps always increase.
+    A sender's clock spaces its frames as it made them, so stamps taken from it keep the stream's
+    rhythm however the network or a scheduler bunch the datagrams. The stamp is the sender's time
+    plus an offset that follows the least delayed arrivals (the lower envelope of arrival minus
+    sender time): it drops to a less delayed arrival at most half a frame step at a time (stamps
+    keep increasing with the sender's time), and creeps up by at most ``drift`` (1000 ppm) of the
+    time that passed, so a sender clock running slow is followed. A time that does not advance (an
+    epoch time sent as float32 moves in 128 s steps) stamps the frame with its arrival time; one
+    whose stamp would be more than ``tolerance`` seconds off its arrival (a sender stalled or
+    restarted, a time that jumped) anchors the clock at that arrival again. Stamps always increase.
     """
 
-    def __init__(self, tolerance: float = 0.1) -> None:
+    def __init__(self, tolerance: float = 0.1, drift: float = 1e-3) -> None:
         self.tolerance_ns = round(tolerance * 1e9)
-        self._anchor: tuple[int, float] | None = None
+        self.drift = drift
+        self._offset: int | None = None
         self._time: float | None = None
+        self._now = 0
         self._last = 0
 
     def stamp(self, sender_time: float | None, now_ns: int) -> int:
@@ -643,15 +648,20 @@ class SenderClock:
         ``now_ns``."""
         stamp = now_ns
         if sender_time is None or self._time is None or sender_time <= self._time:
-            self._anchor = None  # no time, or one that does not advance: arrival time
+            self._offset = None  # no time, or one that does not advance: arrival time
         if sender_time is not None:
-            if self._anchor is not None:
-                stamp = self._anchor[0] + round((sender_time - self._anchor[1]) * 1e9)
-                if abs(stamp - now_ns) > self.tolerance_ns:
-                    self._anchor, stamp = None, now_ns
-            if self._anchor is None:
-                self._anchor = (now_ns, sender_time)
+            t_ns = round(sender_time * 1e9)
+            arrival = now_ns - t_ns  # the offset that would stamp this frame on arrival
+            if self._offset is None or abs(arrival - self._offset) > self.tolerance_ns:
+                self._offset = arrival
+            elif arrival < self._offset:  # less delayed than any before: slew down to it
+                step = round(0.5 * (sender_time - self._time) * 1e9)
+                self._offset = max(arrival, self._offset - step)
+            else:  # follow a slow sender clock, a little at a time
+                self._offset = min(arrival, self._offset + round(self.drift * (now_ns - self._now)))
+            stamp = t_ns + self._offset
             self._time = sender_time
+        self._now = now_ns
         self._last = max(stamp, self._last + 1)
         return self._last
 
