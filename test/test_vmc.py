@@ -494,3 +494,32 @@ def test_a_burst_of_datagrams_is_read_without_kernel_drops(sent):
     assert counts["kernel_dropped"] == 0
     assert counts["datagrams"] == len(datagrams)
     assert len(got) == len(frames)
+
+
+def test_fuzzed_streams_through_the_link_never_give_nan(sent):
+    """Corrupted datagrams of a full sender stream: whatever frames the assembler still makes
+    either convert to finite values or are refused with a reason, and what goes out is finite."""
+    good = [vmc.frame_bundle(f, k / 60).dgram for k, f in enumerate(sent)]
+    asm, link = vmc.VmcFrameAssembler(), vmc.VmcLink()
+    converted = refused = 0
+    for k in range(200):
+        data = np.frombuffer(good[k % len(good)], dtype=np.uint8).copy()
+        if k % 3:
+            data[RNG.integers(0, len(data), 4)] = RNG.integers(0, 256, 4)
+        for frame in asm.feed_datagram(data.tobytes()):
+            try:
+                out = link.receive(frame, 10**9 + k * 16_666_667)
+            except MotionStyleError:
+                refused += 1
+                continue
+            if out is None:  # an OK state that says so
+                continue
+            names, values = out
+            assert np.isfinite(values).all()
+            converted += 1
+            (back,) = vmc.VmcFrameAssembler().feed_datagram(
+                link.send(names, values, 10**9 + k * 16_666_667, 0, k / 60).dgram)
+            assert all(np.isfinite(p).all() and np.isfinite(q).all() for p, q in back.bones.values())
+    assert converted > 50 and asm.counts["malformed"] > 0
+    with pytest.raises(MotionStyleError, match="non-finite"):
+        link.send(names, np.full(len(names), np.nan), 10**9, 0, 0.0)

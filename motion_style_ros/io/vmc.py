@@ -790,7 +790,8 @@ class VmcLink:
         with self._lock:
             if not self._received:
                 return None
-            return min(reversed(self._received), key=lambda r: abs(r.stamp_ns - stamp_ns))
+            # The nearest frame, the older one on a tie (as FrameDelay picks pass-through names).
+            return min(self._received, key=lambda r: abs(r.stamp_ns - stamp_ns))
 
     def send(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int,
              delay_ns: int, time: float) -> osc_bundle.OscBundle:
