@@ -179,3 +179,30 @@ def test_garbage_is_counted_and_the_next_good_frame_comes_through(bridge, clip):
     assert counts["ignored"] == 1
     assert counts["frames"] >= 3 and counts["conversion_errors"] == 1  # the flat frame alone
     assert bridge.proc.poll() is None
+
+
+def test_thru_blendshapes_and_ok_state_pass_the_bridge_with_their_frame(bridge, clip, vmc_out):
+    """A frame with blendshapes and a /VMC/Thru message: the pose on joint_states, the blendshapes on
+    blendshapes with its stamp, and when the pose comes back, the frame goes out with both, the Thru
+    message byte for byte. A frame sent while calibrating is counted, not published."""
+    from pythonosc import osc_packet
+
+    blends = []
+    bridge.node.create_subscription(JointState, "blendshapes", blends.append, qos_profile_sensor_data)
+    (frame,) = vmc.VmcEncoder()(clip[:1])
+    thru = vmc.build_message("/VMC/Thru/Cue", ["scene 2", 3, 0.25])
+    calibrating = vmc.VmcFrame(frame.bones, ok=(1, 2, 0))
+    bridge.sender.send(calibrating, 0.0)
+    shaped = vmc.VmcFrame(frame.bones, blendshapes={"Joy": 0.75, "A": 0.125}, apply=True, ok=(1, 3, 0))
+    messages = [m.message for m in osc_packet.OscPacket(vmc.frame_bundle(shaped, 0.5).dgram).messages]
+    packet = vmc._bundle(messages[:-1] + [thru] + messages[-1:])
+    state = bridge.exchange(lambda: bridge.sender.send_packet(packet), bridge.states, "the shaped frame")
+    assert bridge.spin_until(lambda: blends, "blendshapes")
+    assert list(blends[-1].name) == ["Joy", "A"] and list(blends[-1].position) == [0.75, 0.125]
+    assert blends[-1].header.stamp == state.header.stamp
+    back = bridge.exchange(lambda: bridge.stylized.publish(state), vmc_out.frames, "the frame back out")
+    assert back.blendshapes == {"Joy": 0.75, "A": 0.125} and back.apply and back.ok == (1, 3, 0)
+    assert [m.dgram for m in back.passthrough if m.address.startswith("/VMC/Thru")] == [thru.dgram]
+    assert bridge.spin_until(lambda: bridge.diagnostics and bridge.counters().get("calibrating") == 1,
+                             "calibrating count")
+    assert bridge.counters()["frames"] >= 2

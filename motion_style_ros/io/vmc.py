@@ -630,14 +630,18 @@ class SenderClock:
     sender time): it drops to a less delayed arrival at most half a frame step at a time (stamps
     keep increasing with the sender's time), and creeps up by at most ``drift`` (1000 ppm) of the
     time that passed, so a sender clock running slow is followed. A time that does not advance (an
-    epoch time sent as float32 moves in 128 s steps) stamps the frame with its arrival time; one
-    whose stamp would be more than ``tolerance`` seconds off its arrival (a sender stalled or
-    restarted, a time that jumped) anchors the clock at that arrival again. Stamps always increase.
+    epoch time sent as float32 moves in 128 s steps) stamps the frame with its arrival time. A stamp
+    that would lie more than ``tolerance`` seconds after its arrival (a time that jumped ahead)
+    anchors the clock at that arrival again, and so do frames that trail their arrival by more than
+    ``tolerance`` for longer than ``patience`` seconds of sender time (clocks far apart): frames
+    late for a moment (a sender or network held up, then catching up) keep their sender's rhythm. Stamps always increase.
     """
 
-    def __init__(self, tolerance: float = 0.1, drift: float = 1e-3) -> None:
+    def __init__(self, tolerance: float = 0.1, drift: float = 1e-3, patience: float = 0.5) -> None:
         self.tolerance_ns = round(tolerance * 1e9)
         self.drift = drift
+        self.patience = patience
+        self._late_since: float | None = None
         self._offset: int | None = None
         self._time: float | None = None
         self._now = 0
@@ -652,8 +656,14 @@ class SenderClock:
         if sender_time is not None:
             t_ns = round(sender_time * 1e9)
             arrival = now_ns - t_ns  # the offset that would stamp this frame on arrival
-            if self._offset is None or abs(arrival - self._offset) > self.tolerance_ns:
-                self._offset = arrival
+            late = arrival - self._offset > self.tolerance_ns if self._offset is not None else False
+            if not late:
+                self._late_since = None
+            elif self._late_since is None:
+                self._late_since = sender_time
+            if self._offset is None or self._offset - arrival > self.tolerance_ns or (
+                    late and sender_time - self._late_since > self.patience):
+                self._offset, self._late_since = arrival, None
             elif arrival < self._offset:  # less delayed than any before: slew down to it
                 step = round(0.5 * (sender_time - self._time) * 1e9)
                 self._offset = max(arrival, self._offset - step)
