@@ -349,9 +349,24 @@ def test_stylizer_restyles_the_body_and_keeps_the_rest_in_step(sent, start, list
     report(f"stylizer_elderly_{bundling}", figures)
 
 
-def test_stylizer_at_alpha_zero_is_measured(sent, start, listener):
-    """alpha 0 is Style-ERD's neutral branch, a reconstruction, not the identity: measured."""
+@pytest.fixture(scope="module")
+def recorded(datasets):
+    """A recorded Bandai walk (in the model's training distribution, unlike the procedural walk) at
+    60 Hz, at most SECONDS long, on the same rig."""
+    from motion_style_ros.core.resample import resample
+    from motion_style_ros.io.datasets import index_bandai, load_clip
+
+    info = next(i for i in index_bandai(datasets) if i.content == "walk")
+    clip = resample(load_clip(info), FPS)
+    return sender_frames(clip[: int(SECONDS * FPS)], unity_humanoid(), root=ROOT)
+
+
+@pytest.mark.parametrize("clip", ["procedural", "recorded"])
+def test_stylizer_at_alpha_zero_is_measured(request, start, listener, clip):
+    """alpha 0 is Style-ERD's neutral branch, a reconstruction, and the session conforms arm rolls,
+    grounds and foot-locks the stream: not the identity. Measured, not asserted."""
+    frames = request.getfixturevalue("sent" if clip == "procedural" else "recorded")
     params = dict(input_fps=FPS, target_style="elderly", alpha=0.0)
-    out = run_stream(sent, start, listener, free_port(), free_port(), ("stylizer", params), "bundle")
-    figures = check_stream(out, sent, round(1e9 / 30 - 1e9 / 60))
-    report("stylizer_alpha0_bundle", figures)
+    out = run_stream(frames, start, listener, free_port(), free_port(), ("stylizer", params), "bundle")
+    figures = check_stream(out, frames, round(1e9 / 30 - 1e9 / 60))
+    report(f"stylizer_alpha0_{clip}", figures)

@@ -637,7 +637,7 @@ class SenderClock:
     late for a moment (a sender or network held up, then catching up) keep their sender's rhythm. Stamps always increase.
     """
 
-    def __init__(self, tolerance: float = 0.1, drift: float = 1e-3, patience: float = 0.5) -> None:
+    def __init__(self, tolerance: float = 0.1, drift: float = 1e-3, patience: float = 2.0) -> None:
         self.tolerance_ns = round(tolerance * 1e9)
         self.drift = drift
         self.patience = patience
