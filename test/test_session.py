@@ -52,10 +52,10 @@ def largest_jump(positions):
 
 
 def test_stepping_equals_direct_onnx_runs(model, clips):
-    """Without foot locking and grounding, the session is encode -> the ONNX graph with its state
-    carried -> decode, nothing else."""
+    """Without foot locking, grounding and conditioning, the session is encode -> the ONNX graph
+    with its state carried -> decode, nothing else."""
     walk = clips[0]
-    session = RecurrentSession(model, foot_lock=False, ground=False)
+    session = RecurrentSession(model, foot_lock=False, ground=False, conform=False)
     session.set_style("elderly")
     q, p = stream(session, *frames(walk))
 
@@ -92,8 +92,10 @@ def test_foot_locking_changes_the_legs_only(model, clips):
 
 def test_state_carried_across_steps_equals_run(model, clips):
     walk = clips[1]
-    whole = RecurrentSession(model).run(walk, "feminine", alpha=0.7)
-    session = RecurrentSession(model)
+    # (conditioned from the whole clip at once, run() and a stream differ: test_conform.py and
+    # test_proportions.py compare them)
+    whole = RecurrentSession(model, conform=False).run(walk, "feminine", alpha=0.7)
+    session = RecurrentSession(model, conform=False)
     session.set_style("feminine")
     session.set_alpha(0.7)
     q, p = stream(session, *frames(walk[:60]))
@@ -101,6 +103,20 @@ def test_state_carried_across_steps_equals_run(model, clips):
     assert np.array_equal(np.concatenate([q, q2])[:, 0], whole.rotations)
     assert np.array_equal(np.concatenate([p, p2])[:, 0], whole.positions[:, 1])
     assert whole.n_frames == walk.n_frames and whole.fps == walk.fps
+
+
+def test_a_streams_conditioning_holds_across_gaps_until_reset_recalibrates(model, clips):
+    walk = clips[1]
+    rotations, roots = frames(walk)
+    session = RecurrentSession(model)
+    stream(session, rotations, roots * 0.8)
+    measured = session._scale.scale.copy(), session._rolls.frames.copy()
+    assert measured[1][0] > 0 and abs(measured[0][0] - 1.0) > 0.05
+    stream(session, rotations[:10], roots[:10] * 0.8, np.arange(10) / walk.fps + 100.0)  # a gap
+    assert session._scale.scale[0] == pytest.approx(measured[0][0], abs=0.05)
+    assert session._rolls.frames[0] > measured[1][0]  # still adding to what it had
+    session.reset(recalibrate=True)
+    assert session._scale.scale[0] == 1.0 and session._rolls.frames[0] == 0
 
 
 def test_alpha_zero_is_independent_of_style(model, clips):
@@ -295,16 +311,16 @@ def test_gaps_and_restarts_reset_the_stream(model, clips):
     walk = clips[1]
     rotations, roots = frames(walk)
     n = walk.n_frames
-    fresh = RecurrentSession(model)
+    fresh = RecurrentSession(model, conform=False)
     q_fresh, p_fresh = stream(fresh, rotations[60:], roots[60:])
     stamps = np.arange(n) / walk.fps
     for later, resets in ((stamps + 1.0, True), (stamps - 10.0, True), (stamps + 0.2, False)):
-        session = RecurrentSession(model)
+        session = RecurrentSession(model, conform=False)
         stream(session, rotations[:60], roots[:60], stamps[:60])
         q, p = stream(session, rotations[60:], roots[60:], later[60:])
         same = np.abs(p - p_fresh).max() < 1e-9 and np.abs(q - q_fresh).max() < 1e-9
         assert same == resets, f"jump to {later[60] - stamps[59]:+.2f} s"
-    session = RecurrentSession(model)
+    session = RecurrentSession(model, conform=False)
     stream(session, rotations[:60], roots[:60])
     session.reset()
     q, p = stream(session, rotations[60:], roots[60:])

@@ -91,7 +91,7 @@ def test_identity_generator_streams_the_input_back_aligned(identity_model, walk,
 
 
 def test_streaming_holds_the_first_frame_for_the_lookahead_then_lags(identity_model, walk):
-    session = WindowedSession(identity_model, window=48, lookahead=8, hop=4, foot_lock=False)
+    session = WindowedSession(identity_model, window=48, lookahead=8, hop=4, foot_lock=False, conform=False)
     roots = walk.root_positions
     out = np.array([session.step(walk.rotations[t], roots[t], t / 30)[1] for t in range(40)])
     assert np.abs(out[:9] - roots[0]).max() < 1e-6  # frame 0 held until frame 8 arrives
@@ -229,7 +229,9 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
     for row in rows:
         assert row["jump_ratio_max"] == pytest.approx(1.0, abs=1e-3)
         assert row["jump_over_most_lookahead_max"] == pytest.approx(1.0, abs=1e-3)
-        assert row["distance_from_most_lookahead_m"] < 1e-6
+        # (under a millimetre, not zero: the foot lock on the legs of a stream conditioned to its
+        # measured size engages a frame apart depending on how long the first frame is held)
+        assert row["distance_from_most_lookahead_m"] < 1e-3
         assert row["style_accuracy"] == 0.0  # the input is masculine, not elderly
     # (the foot lock holds the input's own slightly sliding planted feet: about a millimetre)
     assert windowed.alpha_zero_error([(walk, "elderly")], identity_model)["joint_distance_m"] < 3e-3

@@ -50,6 +50,18 @@ def add_parser(subparsers):
                         "diversity of latent seeds against styles, and how closely alpha 0 "
                         "reproduces the input, on one test take per (content, style); writes "
                         "controls.json")
+    p.add_argument("--live", action="store_true",
+                   help="instead: stream every CMU and Xia clip through real nodes (bvh_player -> "
+                        "stylizer per style, over DDS; the clip retargeted, not conformed, as a live "
+                        "rig sends it) and compare with the offline output after the first second; "
+                        "then the same clips from performers 0.8 and 1.2 times the size; writes "
+                        "live_<stylizer>.json")
+    p.add_argument("--live-styles", default="elderly,youthful,normal", metavar="A,B",
+                   help="--live: the styles (one stylizer node each; default: elderly,youthful,normal)")
+    p.add_argument("--live-clips", default="", metavar="NAME,...",
+                   help="--live: only clips whose file names contain one of these (default: all)")
+    p.add_argument("--no-proportions", action="store_true",
+                   help="--live: skip the performer-size part")
     p.set_defaults(func=run)
 
 
@@ -68,6 +80,13 @@ def run(args: argparse.Namespace) -> int:
     # Build the stylizers first: a missing model fails here in one line, before the slow part.
     stylizers = {name: stylizer(name, args.model, args.alpha, args.threads, args.seed_spread)
                  for name in names}
+    if args.live:
+        from motion_style_ros.cli import eval_live
+        from motion_style_ros.errors import MotionStyleError
+
+        if len(names) != 1:
+            raise MotionStyleError("--live streams one stylizer: give one --stylizer")
+        return eval_live.run(args, names[0])
     if args.unseen:
         return run_unseen(args, stylizers)
     if args.controls:

@@ -71,13 +71,16 @@ class LiveGraph:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
 
-    def start(self, node: str, name: str | None = None, **params) -> subprocess.Popen:
-        """Start ``motion_style_ros.nodes.<node>`` (node name ``name``) with ROS parameters; its
-        console output goes to ``<log_dir>/<name>.log``."""
+    def start(self, node: str, name: str | None = None, remaps: dict[str, str] | None = None,
+              **params) -> subprocess.Popen:
+        """Start ``motion_style_ros.nodes.<node>`` (node name ``name``, topics remapped by
+        ``remaps``) with ROS parameters; its console output goes to ``<log_dir>/<name>.log``."""
         name = name or node
         cmd = [sys.executable, "-m", f"motion_style_ros.nodes.{node}", "--ros-args"]
         if name != node:
             cmd += ["-r", f"__node:={name}"]
+        for source, target in (remaps or {}).items():
+            cmd += ["-r", f"{source}:={target}"]
         for key, value in params.items():
             cmd += ["-p", f"{key}:={ros_value(value)}"]
         log = self.log_dir / f"{name}.log"

@@ -25,6 +25,7 @@ import numpy as np
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.proportions import stance_sums
 from motion_style_ros.core.skeleton import Skeleton
 from motion_style_ros.errors import MotionStyleError
 
@@ -40,8 +41,9 @@ HANG_DEGREES = 45.0  # an arm hangs while its upper arm is this close to straigh
 
 def statistics(motions: list[Motion]) -> dict[str, np.ndarray]:
     """Per-joint mean and standard deviation of the 6D local rotations ``(J, 6)`` over clips (an
-    arm chain's joints over the frames where that arm hangs, :func:`arms_hang`), and the median
-    planted-ankle height (m)."""
+    arm chain's joints over the frames where that arm hangs, :func:`arms_hang`), the median
+    planted-ankle height (m), and the median performer scale of the clips with steps in them
+    (:mod:`motion_style_ros.core.proportions` measures streams against it)."""
     sk = motions[0].skeleton
     d6 = np.concatenate([rot.to_6d(m.rotations) for m in motions])
     hang = np.concatenate([arms_hang(m.global_positions(), sk) for m in motions])
@@ -51,8 +53,11 @@ def statistics(motions: list[Motion]) -> dict[str, np.ndarray]:
     count = use.sum(axis=0)[:, None]
     mean = np.where(use[..., None], d6, 0.0).sum(axis=0) / count
     var = np.where(use[..., None], np.square(d6 - mean), 0.0).sum(axis=0) / count
+    sums = np.array([stance_sums(m) for m in motions])
+    steps = sums[:, 1] > 50.0  # clips with steps in them: the others keep the prior's 1
     return {"names": np.array(sk.names), "mean": mean, "std": np.maximum(np.sqrt(var), STD_FLOOR),
-            "ankle_height": np.median([planted_ankle_height(m) for m in motions])}
+            "ankle_height": np.median([planted_ankle_height(m) for m in motions]),
+            "scale_reference": float(np.median(sums[steps, 0] / sums[steps, 1]))}
 
 
 def arms_hang(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
@@ -81,9 +86,15 @@ def ground(motion: Motion, stats: dict[str, np.ndarray]) -> Motion:
 ARM_JOINTS = tuple(name for chain in CHAINS for name in chain)
 ROLL_STEPS = 72  # the grid of roll angles, 5 degrees apart
 # How much more typical (mean squared z-score per frame, per chain) the rolled frames must be than
-# the unrolled ones before a chain is rolled at all, and fully: Bandai test takes reach 14 at the
-# 99th percentile, retargeted CMU arms 63-292, Xia's 5-33 (their rolls are small).
-ROLL_EVIDENCE = (20.0, 50.0)
+# the unrolled ones before a chain is rolled at all, and fully: Bandai test takes reach 20 at most,
+# Xia's 37 (their rolls are small, and partly rolling them early in a stream made it unstable),
+# retargeted CMU arms 57 and up, on any number of frames from 4 to a whole clip.
+ROLL_EVIDENCE = (40.0, 55.0)
+# Joints whose own frame is never rolled (their parent's roll is still undone on their left; their
+# own is solved for with the chain, so that it does not bend the others', and then dropped): how a
+# hand's frame turns says more about what it holds and does than about the rig, and a live estimate
+# of it drifted with the motion for seconds (swordplay, punches) while the whole clip's did not.
+UNROLLED = ("Hand_L", "Hand_R")
 ROLL_MIN_FRAMES = 4  # hanging-arm frames a chain needs before its rolls are estimated
 _D6 = [0, 3, 6, 1, 4, 7]  # the 6D components among a row-major 3x3 matrix's entries
 
@@ -153,6 +164,7 @@ class RollModel:
             step = self.angles[1]
             rolls = np.angle(np.exp(1j * (self.angles[choice] + offset * step)))  # the short way
             angles[:, c * n:(c + 1) * n] = weight[:, None] * rolls
+        angles[:, [ARM_JOINTS.index(j) for j in UNROLLED]] = 0.0  # solved for, not applied
         return angles
 
 

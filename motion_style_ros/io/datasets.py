@@ -436,11 +436,11 @@ def rotation_stats_file() -> Path:
 
 
 def rotation_stats() -> dict[str, np.ndarray]:
-    """Per-joint 6D local-rotation mean and std and the planted-ankle height of the Bandai dataset-2
-    training takes (shipped)."""
+    """Per-joint 6D local-rotation mean and std, the planted-ankle height and the stride scale of
+    the Bandai dataset-2 training takes (shipped; :func:`motion_style_ros.core.conform.statistics`)."""
     data = json.loads(rotation_stats_file().read_text(encoding="utf-8"))
     return {"names": np.array(data["names"]), "mean": np.array(data["mean"]), "std": np.array(data["std"]),
-            "ankle_height": float(data["ankle_height"])}
+            "ankle_height": float(data["ankle_height"]), "scale_reference": float(data["scale_reference"])}
 
 
 def rotation_stats_json(progress: bool = True) -> str:
@@ -452,5 +452,6 @@ def rotation_stats_json(progress: bool = True) -> str:
     stats = statistics(train)
     return json.dumps({"data": f"Bandai Namco Research Motion Dataset 2, {len(train)} train takes",
                        "ankle_height": round(float(stats["ankle_height"]), 6),
+                       "scale_reference": round(float(stats["scale_reference"]), 6),
                        "names": stats["names"].tolist(), "mean": stats["mean"].round(6).tolist(),
                        "std": stats["std"].round(6).tolist()}, indent=1) + "\n"

@@ -34,7 +34,7 @@ from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.nodes import PlayerNode, joint_state, run
-from motion_style_ros.runtime.offline import canonical_clip, default_model
+from motion_style_ros.runtime.offline import NODE_SETTINGS, canonical_clip, default_model
 from motion_style_ros.runtime.session import RecurrentSession
 from motion_style_ros.runtime.windowed import MAX_SPREAD, WindowedSession
 
@@ -123,7 +123,8 @@ class Stylizer(PlayerNode):
         window = self.param("window", 0, "stgcn: frames per window, a multiple of 4; 0 = the model "
                             "card's", 0, 1024)
         hop = self.param("hop", 4, "stgcn: model frames between two windows", 1, 1024)
-        lookahead = self.param("lookahead", 8, "stgcn: model frames of the future each output "
+        lookahead = self.param("lookahead", NODE_SETTINGS["lookahead"], "stgcn: model frames of the "
+                               "future each output "
                                "frame waits for (latency lookahead / model fps); more is smoother",
                                0, 1023)
         input_fps = self.param("input_fps", 0.0, "nominal input rate in Hz (0: the model's rate); "
@@ -139,7 +140,8 @@ class Stylizer(PlayerNode):
         threads = self.param("threads", 1, "ONNX Runtime threads per performer", 1, 16)
         foot_lock = self.param("foot_lock", True, "keep the feet the input plants planted in the "
                                "output (causal leg IK)")
-        follow = self.param("follow_seconds", 2.0, "time constant (s) with which the stylized root "
+        follow = self.param("follow_seconds", NODE_SETTINGS["follow_seconds"], "time constant (s) with "
+                            "which the stylized root "
                             "trajectory is pulled towards the input's, so the avatar stays with its "
                             "performer; 0 = free (the style's own speed and turns, drifting)",
                             0.0, 600.0)
@@ -403,11 +405,12 @@ class Stylizer(PlayerNode):
     def _reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         for p in self.performers:
             self._flush(p)
+            p.session.reset(recalibrate=True)
             p.session.restart()
             p.clear()
         response.success = True
         response.message = (f"reset {len(self.performers)} performer(s): each one's next frame "
-                            "starts a fresh stream")
+                            "starts a fresh stream, its rig measured again")
         return response
 
     def _publish_diagnostics(self) -> None:

@@ -54,23 +54,23 @@ def default_model(backend: str) -> str:
     return "style_erd.onnx"
 
 
-def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1) -> Stylizer:
-    """The recurrent (Style-ERD) session."""
+def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1, **session) -> Stylizer:
+    """The recurrent (Style-ERD) session; ``session``: more of its settings."""
     from motion_style_ros.runtime.session import RecurrentSession
 
     return _per_rate(lambda fps: RecurrentSession(model or default_model("recurrent"), input_fps=fps,
-                                                  threads=threads), alpha)
+                                                  threads=threads, **session), alpha)
 
 
 def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1,
-          seed_spread: float = 1.0) -> Stylizer:
+          seed_spread: float = 1.0, **session) -> Stylizer:
     """The windowed ST-GCN session: latent seed 0, the default window, hop and lookahead."""
-    return windowed(model, alpha, threads, seed_spread=seed_spread)[0]
+    return windowed(model, alpha, threads, seed_spread=seed_spread, **session)[0]
 
 
 def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, seed: int = 0,
              reference: "Motion | None" = None, style: str | None = None,
-             seed_spread: float = 1.0) -> tuple[Stylizer, str | None]:
+             seed_spread: float = 1.0, **session) -> tuple[Stylizer, str | None]:
     """The windowed ST-GCN session with a latent seed, or with a reference clip's style code (read
     by ``style``'s head, by default the style the encoder recognises); the stylizer, and the
     reference's style."""
@@ -79,28 +79,38 @@ def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, see
     recognised = []
 
     def make(fps: float | None) -> WindowedSession:
-        session = WindowedSession(model or default_model("stgcn"), input_fps=fps, threads=threads,
-                                  latent_seed=seed, seed_spread=seed_spread)
+        made = WindowedSession(model or default_model("stgcn"), input_fps=fps, threads=threads,
+                               latent_seed=seed, seed_spread=seed_spread, **session)
         if reference is not None:
-            recognised.append(session.set_reference(reference, style))
-        return session
+            recognised.append(made.set_reference(reference, style))
+        return made
 
     stylize = _per_rate(make, alpha)
     return stylize, recognised[0] if recognised else None
 
 
 STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent, "stgcn": stgcn}
+# What the stylizer node runs with beyond the sessions' own defaults (its parameters take their
+# defaults from here): the stylized root follows the performer's, and the windowed backend looks 8
+# model frames ahead.
+NODE_SETTINGS = {"follow_seconds": 2.0, "lookahead": 8}
+
+
+def node_settings(backend: str) -> dict:
+    """The :data:`NODE_SETTINGS` a backend's session takes."""
+    return {k: v for k, v in NODE_SETTINGS.items() if k != "lookahead" or backend == "stgcn"}
 
 
 def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1,
-             seed_spread: float | None = None) -> Stylizer:
-    """A backend's offline stylizer; ``seed_spread`` (stgcn only): see ``WindowedSession``."""
+             seed_spread: float | None = None, **session) -> Stylizer:
+    """A backend's offline stylizer; ``seed_spread`` (stgcn only): see ``WindowedSession``;
+    ``session``: more session settings (e.g. :func:`node_settings`)."""
     from motion_style_ros.errors import MotionStyleError
 
     if backend not in STYLIZERS:
         raise MotionStyleError(f"unknown backend {backend!r}; choose one of {', '.join(STYLIZERS)}")
     if seed_spread is None:
-        return STYLIZERS[backend](model=model, alpha=alpha, threads=threads)
+        return STYLIZERS[backend](model=model, alpha=alpha, threads=threads, **session)
     if backend != "stgcn":
         raise MotionStyleError(f"a seed spread needs backend stgcn (latent seeds); {backend} has none")
-    return stgcn(model=model, alpha=alpha, threads=threads, seed_spread=seed_spread)
+    return stgcn(model=model, alpha=alpha, threads=threads, seed_spread=seed_spread, **session)

@@ -57,6 +57,8 @@ from motion_style_ros.core.conform import ANKLES, StreamGround, StreamRolls
 from motion_style_ros.core.features import FEATURE_VERSION, UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.motion import Motion, forward_kinematics
+from motion_style_ros.core.proportions import CONTACTS, StreamScale, clip_scale
+from motion_style_ros.core.resample import resample
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.core.standing import Standing
 from motion_style_ros.errors import MotionStyleError
@@ -146,6 +148,8 @@ class RecurrentSession:
         stats = rotation_stats()
         self._ground = StreamGround(self.performers, self.fps, stats["ankle_height"]) if ground else None
         self._rolls = StreamRolls(self.performers, self.fps, stats, self.skeleton) if conform else None
+        self._scale = StreamScale(self.performers, self.fps, stats["scale_reference"]) if conform else None
+        self._contacts = [self.skeleton.index(n) for n in CONTACTS]
         self._ankle_joints = [self.skeleton.index(n) for n in ANKLES]  # what grounding and foot locks read
         self._fresh = np.ones(self.performers, dtype=bool)
         self._phase = 0.0
@@ -176,6 +180,7 @@ class RecurrentSession:
         which = self._controls.which(performer)
         if recalibrate and self._rolls is not None:
             self._rolls.clear(which)
+            self._scale.clear(which)
         self._fresh[which] = True
         self._encoder.reset(which)
 
@@ -215,8 +220,10 @@ class RecurrentSession:
             pending, self._pending = self._pending, None
             self._advance(*pending)
 
-    def run(self, motion: Motion, style: str, alpha: float = 1.0) -> Motion:
-        """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``)."""
+    def run(self, motion: Motion, style: str, alpha: float = 1.0, calibration: Motion | None = None
+            ) -> Motion:
+        """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``), the
+        stream conditioned (arm rolls, size) from the whole clip at once, or from ``calibration``."""
         if self.performers != 1:
             raise MotionStyleError(
                 f"run() stylizes one clip; this session has {self.performers} performers"
@@ -232,8 +239,10 @@ class RecurrentSession:
         self.set_alpha(alpha)
         self.set_mix(None, 0.0)
         self.restart()
-        if self._rolls is not None:  # offline, the rolls come from the whole clip at once
-            self._rolls.calibrate(0, motion)
+        if self._rolls is not None:  # offline, the conditioning comes from the whole clip at once
+            whole = motion if calibration is None else calibration
+            self._rolls.calibrate(0, whole)
+            self._scale.calibrate(0, clip_scale(resample(whole, self.fps), self._scale.reference))
         roots = motion.positions[:, self.skeleton.pelvis]
         frames = [self.step(motion.rotations[t : t + 1], roots[t : t + 1], t / motion.fps)
                   for t in range(motion.n_frames)]
@@ -271,6 +280,9 @@ class RecurrentSession:
         down by each performer's ground offset), and the offsets as lifts ``(P, 3)`` to add back
         to the output (see the module docstring)."""
         conformed = q if self._rolls is None else self._rolls.conform(q)
+        if self._scale is not None:
+            self._scale.start(fresh)
+            p = self._scale.to_canonical(p)
         lift = np.zeros((self.performers, 3))
         if self._ground is not None:
             if fresh.any():
@@ -283,13 +295,15 @@ class RecurrentSession:
         if self._ground is not None:
             self._ground.update(self._encoder.positions[:, self._ankle_joints] + lift[:, None])
         if self._rolls is not None:
-            self._rolls.observe(q, self._encoder.positions)
+            positions = self._encoder.positions
+            self._rolls.observe(q, positions)
+            self._scale.observe(positions[:, self._contacts] - positions[:, self.skeleton.pelvis, None])
         return features, lift
 
     def _emit(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
         """Keep a model frame's output at stream time ``t``, in the stream's own joint frames."""
         if self._rolls is not None:
-            q = self._rolls.undo(q)
+            q, p = self._rolls.undo(q), self._scale.to_stream(p)
         self._outputs = [*self._outputs[-1:], (t, q, p)]
 
     def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:

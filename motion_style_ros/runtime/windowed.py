@@ -204,7 +204,8 @@ class WindowedSession(RecurrentSession):
 
     # --- stream -------------------------------------------------------------------------------
 
-    def run(self, motion: Motion, style: str, alpha: float = 1.0) -> Motion:
+    def run(self, motion: Motion, style: str, alpha: float = 1.0, calibration: Motion | None = None
+            ) -> Motion:
         """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``), with
         the output aligned to the input: the stream is run on past the clip's end (its last frame
         held) for the latency, and the first outputs, which belong before the clip, are dropped."""
@@ -213,7 +214,7 @@ class WindowedSession(RecurrentSession):
             motion.skeleton, np.concatenate([motion.rotations, np.repeat(motion.rotations[-1:], delay, 0)]),
             np.concatenate([motion.root_positions, np.repeat(motion.root_positions[-1:], delay, 0)]),
             motion.fps) if delay else motion
-        out = super().run(held, style, alpha)
+        out = super().run(held, style, alpha, calibration=motion if calibration is None else calibration)
         return Motion.from_rotations(self.skeleton, out.rotations[delay:],
                                      out.root_positions[delay:], motion.fps)
 

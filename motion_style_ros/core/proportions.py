@@ -1,0 +1,154 @@
+"""A performer's size, read from how their root moves against their legs.
+
+A stream in the canonical layout carries joint rotations and the root's position in metres, not
+bone lengths: a performer 0.8 times the canonical skeleton's size sends the same rotations with a
+root that moves 0.8 times as far per step. A stylizer that took that root as it is would see a
+canonical body whose planted feet slide backwards (and a pelvis that sinks), and its output, put
+back on the performer's smaller avatar, would slide the other way.
+
+While a foot is planted, the world velocity of its ankle is zero: the root moves at minus the
+performer's scale times the rate at which the canonical leg carries the ankle relative to the
+pelvis, ``v_root = -s * d/dt(ankle - pelvis)``. The scale is the least-squares ``s`` over such
+frames (the stance foot is the one that moves least at the current estimate), with a prior of 1
+worth :data:`PRIOR_WEIGHT` so that a stream with no steps in it keeps the canonical size.
+:class:`StreamScale` maps the stream into canonical proportions (root displacements and height
+divided by ``s``) and the stylized output back (multiplied by ``s``), so the output keeps the
+performer's own proportions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motion_style_ros.core.motion import Motion
+
+PRIOR_WEIGHT = 2.0  # (m/s)^2 frames: a few steps outweigh it
+MIN_LEG_SPEED = 0.1  # m/s: slower relative ankle motion says little about the scale
+SCALE_RANGE = (0.5, 2.0)
+# A frame counts when its stance ankle moves, at the current estimate, slower than this fraction
+# of the leg's own motion: in a flight phase (runs, jumps) no ankle is planted.
+STANCE_RESIDUAL = 0.35
+# The points that rest on the floor in a stance: the ankle from heel strike, the toes at push-off
+# (the ankle then rolls forward over them).
+CONTACTS = ("Foot_L", "Foot_R", "Toes_L", "Toes_R")
+
+
+def _stance_sums(root_velocity: np.ndarray, leg_velocity: np.ndarray, scale: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The least-squares sums ``(-v . l, l . l)`` of each performer's stance foot for one frame:
+    ``root_velocity`` ``(P, 2)`` and ``leg_velocity`` ``(P, K, 2)`` of the contact points (ankles and toes), horizontal m/s."""
+    world = root_velocity[:, None] + scale[:, None, None] * leg_velocity  # (P, K, 2)
+    foot = np.argmin(np.square(world).sum(axis=-1), axis=1)
+    leg = leg_velocity[np.arange(len(foot)), foot]
+    speed = np.sqrt(np.square(leg).sum(axis=-1))
+    residual = np.sqrt(np.square(world[np.arange(len(foot)), foot]).sum(axis=-1))
+    use = (speed > MIN_LEG_SPEED) & (residual < STANCE_RESIDUAL * scale * speed)
+    return (np.where(use, -(root_velocity * leg).sum(axis=-1), 0.0),
+            np.where(use, np.square(leg).sum(axis=-1), 0.0))
+
+
+def _estimate(cross: np.ndarray, square: np.ndarray, reference: float) -> np.ndarray:
+    """The scale from the sums, relative to what the training data gives (``reference``)."""
+    return np.clip((cross + PRIOR_WEIGHT * reference) / (square + PRIOR_WEIGHT) / reference, *SCALE_RANGE)
+
+
+def stance_sums(motion: Motion, reference: float = 1.0, passes: int = 3) -> tuple[float, float]:
+    """A whole clip's least-squares sums (see the module docstring), the stance feet settled
+    together with the scale over a few passes."""
+    if motion.n_frames < 2:
+        return 0.0, 0.0
+    g = motion.global_positions()
+    pelvis = motion.skeleton.pelvis
+    points = [motion.skeleton.index(n) for n in CONTACTS]
+    root_v = np.diff(g[:, pelvis, [0, 2]], axis=0) * motion.fps
+    leg_v = np.diff(g[:, points][..., [0, 2]] - g[:, pelvis, None][..., [0, 2]], axis=0) * motion.fps
+    scale = np.array([reference])
+    for _ in range(passes):
+        cross, square = _stance_sums(root_v, leg_v, np.repeat(scale, len(root_v)))
+        scale = np.clip(np.array([(cross.sum() + PRIOR_WEIGHT * reference) / (square.sum() + PRIOR_WEIGHT)]),
+                        *SCALE_RANGE)
+    return float(cross.sum()), float(square.sum())
+
+
+def clip_scale(motion: Motion, reference: float = 1.0) -> float:
+    """A whole clip's performer scale relative to the training data's (``reference``: what
+    :func:`stance_sums` gives on it, as ``cross / square`` pooled over its clips)."""
+    return float(_estimate(*(np.array([v]) for v in stance_sums(motion, reference)), reference)[0])
+
+
+class StreamScale:
+    """Each of ``performers`` streams' scale, estimated frame by frame, and the maps between the
+    stream's world and canonical proportions.
+
+    The map of root positions is kept continuous while the estimate moves (eased with time
+    constant ``ease_seconds``): the stream's horizontal root displacements are divided by the
+    scale and added up from where the last frame left them. Heights pass as they are: a shorter
+    performer's lower pelvis puts the canonical feet below the floor, which the session's
+    grounding (:class:`~motion_style_ros.core.conform.StreamGround`) takes up as it does another
+    rig's ankle height, and adds back to the output. :meth:`to_canonical` maps a frame's root in, :meth:`observe` learns
+    from it, :meth:`to_stream` maps stylized root positions back out. The scale is the rig's: it
+    holds across gaps until :meth:`clear`; :meth:`calibrate` sets it from a whole clip.
+    """
+
+    def __init__(self, performers: int, fps: float, reference: float = 1.0, ease_seconds: float = 0.2
+                 ) -> None:
+        self.fps = float(fps)
+        self.reference = float(reference)
+        self._gain = 1.0 - np.exp(-1.0 / (self.fps * ease_seconds))
+        self.scale = np.ones(performers)  # as applied
+        self.target = np.ones(performers)
+        self._cross = np.zeros(performers)
+        self._square = np.zeros(performers)
+        self.frozen = np.zeros(performers, dtype=bool)
+        self._stream = np.full((performers, 3), np.nan)  # last frame's root, stream world
+        self._canonical = np.zeros((performers, 3))  # and where it went, canonical proportions
+        self._relative = np.full((performers, len(CONTACTS), 2), np.nan)  # last contacts - pelvis
+        self._step = np.full((performers, 3), np.nan)  # the last frame's root displacement
+
+    def clear(self, which: np.ndarray | slice) -> None:
+        """These performers are measured again from nothing (canonical size)."""
+        for a, value in ((self.scale, 1.0), (self.target, 1.0), (self._cross, 0.0),
+                         (self._square, 0.0), (self._relative, np.nan)):
+            a[which] = value
+        self.frozen[which] = False
+
+    def calibrate(self, performer: int, scale: float) -> None:
+        """Fix one performer's scale (a whole clip's, :func:`clip_scale`)."""
+        self.scale[performer] = self.target[performer] = scale
+        self.frozen[performer] = True
+
+    def start(self, which: np.ndarray) -> None:
+        """These performers' streams start (again): the next root is taken as it comes."""
+        self._stream[which] = np.nan
+        self._relative[which] = np.nan
+
+    def to_canonical(self, root: np.ndarray) -> np.ndarray:
+        """A frame's stream roots ``(P, 3)`` in canonical proportions."""
+        first = np.isnan(self._stream[:, 0])
+        self._step = root - self._stream
+        out = np.where(first[:, None], root / self.scale[:, None],
+                       self._canonical + self._step / self.scale[:, None])
+        out[:, 1] = root[:, 1]
+        self._stream, self._canonical = root.copy(), out.copy()
+        return out
+
+    def observe(self, relative_ankles: np.ndarray) -> None:
+        """Learn from the frame just mapped: its :data:`CONTACTS` relative to the pelvis ``(P, K, 3)`` on the
+        canonical skeleton (the rotations alone give them); then ease the applied scale on."""
+        rel = relative_ankles[..., [0, 2]]
+        have = ~np.isnan(self._relative[:, 0, 0]) & ~np.isnan(self._step[:, 0]) & ~self.frozen
+        if have.any():
+            cross, square = _stance_sums(np.nan_to_num(self._step[:, [0, 2]]) * self.fps,
+                                         np.nan_to_num(rel - self._relative) * self.fps,
+                                         self.target * self.reference)
+            self._cross += np.where(have, cross, 0.0)
+            self._square += np.where(have, square, 0.0)
+            self.target = np.where(self.frozen, self.target, _estimate(self._cross, self._square, self.reference))
+        self._relative = rel.copy()
+        self.scale = np.where(self.frozen, self.scale, self.scale + self._gain * (self.target - self.scale))
+
+    def to_stream(self, positions: np.ndarray) -> np.ndarray:
+        """Stylized root positions ``(P, 3)`` (canonical proportions) in the stream's world."""
+        out = self._stream + self.scale[:, None] * (positions - self._canonical)
+        out[:, 1] = positions[:, 1]
+        return np.where(np.isnan(self._stream[:, :1]), positions, out)
