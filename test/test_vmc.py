@@ -475,14 +475,15 @@ def test_sender_clock_keeps_the_senders_rhythm_and_falls_back_on_arrival():
         return k * 16_666_667 if k < 6 else max(300_000_000 + (k - 6) * 4_000_000, k * 16_666_667)
 
     held = [clock.stamp(0.5 + k / 60, base + arrival(k)) for k in range(2, 30)]
-    np.testing.assert_allclose(np.diff(held), 1e9 / 60, atol=300_000)
-    # Trailing arrival for longer than the patience (clocks apart): anchored anew, then steady.
-    late = [clock.stamp(1.0 + k / 60, base + 2 * 10**9 + k * 16_666_667) for k in range(180)]
-    assert late[-1] == pytest.approx(base + 2 * 10**9 + 179 * 16_666_667, abs=200_000)
-    np.testing.assert_allclose(np.diff(late[-20:]), 1e9 / 60, atol=50_000)
+    np.testing.assert_allclose(np.diff(held), 1e9 / 60, atol=500_000)
+    # A sender that fell 0.6 s behind and stays behind: the stamps catch up at 10 % (each step at
+    # most 1.1 frames long, never a gap) until they trail arrival by less than the tolerance.
+    late = np.array([clock.stamp(1.0 + k / 60, base + 1_100_000_000 + k * 16_666_667) for k in range(400)])
+    assert np.all(np.diff(late) >= 16_666_000) and np.all(np.diff(late) <= 1.1 * 16_666_667 + 1000)
+    assert 0 <= base + 1_100_000_000 + 399 * 16_666_667 - late[-1] <= 100_000_000
     # A time that jumps ahead: anchored at arrival at once; never backwards.
-    assert clock.stamp(50.0, base + 6 * 10**9) == base + 6 * 10**9
-    assert clock.stamp(60.0, base) == base + 6 * 10**9 + 1
+    assert clock.stamp(50.0, base + 9 * 10**9) == base + 9 * 10**9
+    assert clock.stamp(60.0, base) == base + 9 * 10**9 + 1
 
 
 def test_a_burst_of_datagrams_is_read_without_kernel_drops(sent):

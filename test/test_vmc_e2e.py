@@ -177,9 +177,9 @@ def run_stream(sent, start, listener, bridge_port, out_port, middle, bundling):
         sender = osc.create_sender("127.0.0.1", bridge_port, "performer").open()
         # Warm-up: one frame at a time until it has come all the way round (DDS readers and
         # writers matched both ways), then the counters' baseline; the measured stream follows.
-        warm = 0
+        warm, opened = 0, time.monotonic()
         while not (marionette.frames and stylized):
-            send(sender, vmcp_messages(sent[0], warm * 0.1), bundling)
+            send(sender, vmcp_messages(sent[0], time.monotonic() - opened), bundling)
             warm += 1
             pump(osc, listener, time.monotonic() + 0.1)
         pump(osc, listener, time.monotonic() + 0.5)  # the last warm-up frames still in flight
@@ -193,7 +193,7 @@ def run_stream(sent, start, listener, bridge_port, out_port, middle, bundling):
             topic.clear()
         marionette.frames.clear()
         t0 = time.monotonic()
-        start_time = warm * 0.1 + 1.0
+        start_time = t0 - opened  # T: the sender's clock, as an app's frame time runs
         for k, frame in enumerate(sent):
             send(sender, vmcp_messages(frame, start_time + k / FPS), bundling)
             pump(osc, listener, t0 + (k + 1) / FPS)
@@ -302,6 +302,9 @@ def check_stream(out, sent, latency_ns):
     assert np.isfinite(deg).all() and np.isfinite(metres).all()
     joint_cm = joint_distances(received, sent, shown) * 100
     steps = np.diff([stamp_ns(m) for m in states]) * 1e-6
+    if os.environ.get("VMC_E2E_DEBUG"):
+        i = int(np.argmax(steps))
+        print("largest stamp step", i, steps[max(0, i - 3): i + 4], "of", len(steps))
     return dict(frames_sent=len(sent), frames_out=len(received), seconds=SECONDS,
                 stamp_step_ms=[round(float(steps.min()), 3), round(float(np.median(steps)), 3),
                                round(float(steps.max()), 3)],

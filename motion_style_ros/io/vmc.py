@@ -625,21 +625,25 @@ class SenderClock:
     """Stamps for a sender's frames: its own ``/VMC/Ext/T`` when that advances, else arrival time.
 
     A sender's clock spaces its frames as it made them, so stamps taken from it keep the stream's
-    rhythm however the network or a scheduler bunch the datagrams. The stamp is the sender's time
-    plus an offset that follows the least delayed arrivals (the lower envelope of arrival minus
-    sender time): it drops to a less delayed arrival at most half a frame step at a time (stamps
-    keep increasing with the sender's time), and creeps up by at most ``drift`` (1000 ppm) of the
-    time that passed, so a sender clock running slow is followed. A time that does not advance (an
-    epoch time sent as float32 moves in 128 s steps) stamps the frame with its arrival time. A stamp
-    that would lie more than ``tolerance`` seconds after its arrival (a time that jumped ahead)
-    anchors the clock at that arrival again, and so do frames that trail their arrival by more than
-    ``tolerance`` for longer than ``patience`` seconds of sender time (clocks far apart): frames
-    late for a moment (a sender or network held up, then catching up) keep their sender's rhythm. Stamps always increase.
+    rhythm however the network, the sender or a scheduler hold up and bunch the datagrams. The stamp
+    is the sender's time plus an offset that follows the least delayed arrivals (the lower envelope
+    of arrival minus sender time), and the offset only ever slews, so stamps keep their spacing to
+    within a fraction: it drops to a less delayed arrival by at most half a frame step at a time,
+    creeps up by ``drift`` (1000 ppm) of the time that passed so a slow sender clock is followed,
+    and once frames have trailed their arrival by more than ``tolerance`` seconds for ``patience``
+    seconds of sender time (a sender that fell behind and stays behind; a sender held up for a
+    moment that then sends its backlog keeps its stamps) it catches up at ``catch_up`` (10 %: frame
+    steps 1.1 times longer) until they trail by less. A time that does not advance (an epoch time sent as float32 moves in 128 s
+    steps) stamps the frame with its arrival time, and one that would stamp a frame more than
+    ``tolerance`` after its arrival (a time that jumped ahead) anchors the clock at that arrival
+    again. Stamps always increase.
     """
 
-    def __init__(self, tolerance: float = 0.1, drift: float = 1e-3, patience: float = 2.0) -> None:
+    def __init__(self, tolerance: float = 0.1, drift: float = 1e-3, catch_up: float = 0.1,
+                 patience: float = 0.5) -> None:
         self.tolerance_ns = round(tolerance * 1e9)
         self.drift = drift
+        self.catch_up = catch_up
         self.patience = patience
         self._late_since: float | None = None
         self._offset: int | None = None
@@ -656,19 +660,19 @@ class SenderClock:
         if sender_time is not None:
             t_ns = round(sender_time * 1e9)
             arrival = now_ns - t_ns  # the offset that would stamp this frame on arrival
-            late = arrival - self._offset > self.tolerance_ns if self._offset is not None else False
-            if not late:
-                self._late_since = None
-            elif self._late_since is None:
-                self._late_since = sender_time
-            if self._offset is None or self._offset - arrival > self.tolerance_ns or (
-                    late and sender_time - self._late_since > self.patience):
-                self._offset, self._late_since = arrival, None
-            elif arrival < self._offset:  # less delayed than any before: slew down to it
-                step = round(0.5 * (sender_time - self._time) * 1e9)
-                self._offset = max(arrival, self._offset - step)
-            else:  # follow a slow sender clock, a little at a time
-                self._offset = min(arrival, self._offset + round(self.drift * (now_ns - self._now)))
+            if self._offset is None or self._offset - arrival > self.tolerance_ns:
+                self._offset = arrival
+            else:
+                step = (sender_time - self._time) * 1e9
+                if arrival < self._offset:  # less delayed than any before: slew down to it
+                    self._offset = max(arrival, self._offset - round(0.5 * step))
+                else:
+                    late = arrival - self._offset > self.tolerance_ns
+                    self._late_since = (self._late_since if self._late_since is not None
+                                        else sender_time) if late else None
+                    behind = late and sender_time - self._late_since > self.patience
+                    up = self.catch_up * step if behind else self.drift * max(step, now_ns - self._now)
+                    self._offset = min(arrival, self._offset + round(up))
             stamp = t_ns + self._offset
             self._time = sender_time
         self._now = now_ns
