@@ -118,7 +118,7 @@ def pump(osc, listener, until):
     """Run vmcp's event loop (one datagram in or out per call) and the test node until ``until``
     (a monotonic time)."""
     while True:
-        for _ in range(200):
+        for _ in range(20):
             osc.run()
         listener.executor.spin_once(timeout_sec=0)
         if time.monotonic() >= until:
@@ -197,6 +197,7 @@ def run_stream(sent, start, listener, bridge_port, out_port, middle, bundling):
         for k, frame in enumerate(sent):
             send(sender, vmcp_messages(frame, start_time + k / FPS), bundling)
             pump(osc, listener, t0 + (k + 1) / FPS)
+        sending = time.monotonic() - t0
         deadline = time.monotonic() + 60 + SECONDS
         while len(marionette.frames) < len(sent) and time.monotonic() < deadline:
             pump(osc, listener, time.monotonic() + 0.01)
@@ -208,7 +209,7 @@ def run_stream(sent, start, listener, bridge_port, out_port, middle, bundling):
     final = bridge_status()
     counts = {k: (int(v) - int(baseline.get(k, 0)) if v.isdigit() and k != "receive_buffer_bytes" else v) for k, v in final.items()}
     return dict(received=marionette.frames, states=list(states), stylized=list(stylized),
-                blendshapes=list(blendshapes), bridge=counts)
+                blendshapes=list(blendshapes), bridge=counts, sending_seconds=sending)
 
 
 def stamp_ns(msg):
@@ -306,6 +307,7 @@ def check_stream(out, sent, latency_ns):
         i = int(np.argmax(steps))
         print("largest stamp step", i, steps[max(0, i - 3): i + 4], "of", len(steps))
     return dict(frames_sent=len(sent), frames_out=len(received), seconds=SECONDS,
+                sending_seconds=round(out["sending_seconds"], 2),
                 stamp_step_ms=[round(float(steps.min()), 3), round(float(np.median(steps)), 3),
                                round(float(steps.max()), 3)],
                 kernel_dropped=int(bridge["kernel_dropped"]), datagrams=int(bridge["datagrams"]),

@@ -443,13 +443,18 @@ class VmcDecoder:
         self.rig = self._retarget = None
 
     def _fits(self, frame: VmcFrame) -> bool:
-        """Whether ``frame`` has the rig's body bones, with its offsets to within 0.1 mm."""
+        """Whether ``frame`` has the rig's body bones, with its offsets to within 0.1 mm (the hips'
+        position is the root motion, not an offset)."""
         rig = self.rig
-        names, _ = _unity_tree(list(frame.bones))
-        if rig is None or tuple(names) != rig.names:
+        if rig is None or len(frame.bones) < rig.n_joints:
             return False
-        offsets = unity_to_core_position(np.stack([frame.bones[b][0] for b in names]))
-        return bool(np.abs(offsets - rig.offsets).max() < 1e-4)
+        try:
+            offsets = np.stack([frame.bones[b][0] for b in rig.names[1:]])
+        except KeyError:
+            return False
+        names, _ = _unity_tree(list(frame.bones))
+        return tuple(names) == rig.names and bool(
+            np.abs(unity_to_core_position(offsets) - rig.offsets[1:]).max() < 1e-4)
 
     def __call__(self, frames: Sequence[VmcFrame]) -> Motion:
         if not self._fits(frames[0]):
