@@ -537,3 +537,16 @@ def test_fuzzed_streams_through_the_link_never_give_nan(sent):
     assert converted > 50 and asm.counts["malformed"] > 0
     with pytest.raises(MotionStyleError, match="non-finite"):
         link.send(names, np.full(len(names), np.nan), 10**9, 0, 0.0)
+
+
+def test_the_rig_is_kept_while_the_avatar_stays_and_built_anew_for_another(humanoid, sent):
+    decoder = vmc.VmcDecoder()
+    decoder(sent[:1])
+    rig = decoder.rig
+    for f in sent[1:]:  # the hips move (root motion): the same avatar
+        decoder([f])
+    assert decoder.rig is rig
+    other = sender_frames(random_motion(2, spread=0.3), unity_humanoid(arm=0.9, leg=1.1))
+    decoder(other[:1])
+    assert decoder.rig is not rig
+    assert not np.allclose(decoder.rig.offsets[1:], rig.offsets[1:])
