@@ -451,3 +451,25 @@ def test_an_anchored_root_is_only_ever_held_back(clips):
     path_a, path_f = np.linalg.norm(step_a, axis=-1).sum(), np.linalg.norm(step_f, axis=-1).sum()
     print(f"active on a normal walk: root path {path_f:.2f} m free, {path_a:.2f} m anchored")
     assert path_a < path_f - 0.05
+
+
+def test_calibration_says_what_the_stream_has_shown(model):
+    from motion_style_ros.core.synthetic import synthetic_motion
+    from motion_style_ros.runtime.session import describe_calibration
+
+    walk, wave = synthetic_motion("walk", 30.0, 4.0), synthetic_motion("wave", 30.0, 4.0)
+    session = RecurrentSession(model)
+    assert session.calibration()["state"] == "measuring"
+    stream(session, walk.rotations[:30], walk.root_positions[:30])
+    assert session.calibration()["state"] == "measuring"  # the first two seconds
+    stream(session, walk.rotations[30:], walk.root_positions[30:], np.arange(30, walk.n_frames) / 30.0)
+    measured = session.calibration()
+    assert measured["state"] == "measured" and measured["arm_rolls_deg"] == [0.0] * 8  # Bandai-like arms
+    # A waving arm never hangs: said once, in a line that names what to do.
+    waving = RecurrentSession(model)
+    stream(waving, wave.rotations, wave.root_positions)
+    assert waving.calibration()["state"] == "arms never hung"
+    assert "until they hang" in describe_calibration(waving.calibration())
+    waving.run(wave, "elderly")
+    assert waving.calibration()["state"] == "clip"
+    assert RecurrentSession(model, conform=False).calibration() == {"state": "off"}

@@ -25,6 +25,7 @@ def stream_clip(graph, path: Path, styles: list[str], backend: str, fps: float) 
     from sensor_msgs.msg import JointState
 
     from motion_style_ros.cli.live import STARTUP_SECONDS, stamp_ns
+    from motion_style_ros.evaluation import live
 
     qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
     inputs: list[int] = []
@@ -48,7 +49,7 @@ def stream_clip(graph, path: Path, styles: list[str], backend: str, fps: float) 
                          "the stylizers to start", STARTUP_SECONDS)
         graph.spin_for(SETTLE_SECONDS)
         player = graph.start("bvh_player", file=str(path), topic="/clip/joint_states",
-                             wait_for_subscribers=len(styles) + 1)
+                             wait_for_subscribers=len(styles) + 1, start_frame=live.start_frame(path))
         graph.spin_until(lambda: player.poll() is not None, f"{path.name} to play", STARTUP_SECONDS + 120.0)
         graph.spin_for(1.0)  # frames still in flight
         graph.processes.pop("bvh_player")
@@ -89,7 +90,7 @@ def run(args: argparse.Namespace, backend: str) -> int:
             source = live.live_input(path)
             inputs, outputs = stream_clip(graph, path, styles, backend, source.fps)
             index = {stamp: k for k, stamp in enumerate(inputs)}
-            reference = canonical_clip(str(path))
+            reference = canonical_clip(str(path))[live.start_frame(path):]
             delay = _delay(backend, source.fps)
             for style in styles:
                 frames = sorted((index[s], v) for s, v in outputs[style].items() if s in index)

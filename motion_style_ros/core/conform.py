@@ -95,7 +95,8 @@ ROLL_EVIDENCE = (40.0, 55.0)
 # hand's frame turns says more about what it holds and does than about the rig, and a live estimate
 # of it drifted with the motion for seconds (swordplay, punches) while the whole clip's did not.
 UNROLLED = ("Hand_L", "Hand_R")
-ROLL_MIN_FRAMES = 4  # hanging-arm frames a chain needs before its rolls are estimated
+RESTART_DEGREES = 10.0  # first measured rolls this far off: applied at once, the stylizer's memory reset
+ROLL_MIN_FRAMES = 1  # hanging-arm frames a chain needs before its rolls are estimated
 _D6 = [0, 3, 6, 1, 4, 7]  # the 6D components among a row-major 3x3 matrix's entries
 
 
@@ -259,8 +260,8 @@ class StreamRolls:
     """:func:`conform_rolls` for ``performers`` live streams, from each stream itself.
 
     Each model frame adds its hanging arms' rotations to the performer's moments; the rolls are
-    solved again every ``solve_seconds`` for the first ``settle_seconds`` of a stream and every
-    second after, and the applied rolls ease towards the solution with time constant
+    solved on every frame until they are first found, then every ``solve_seconds`` for the first
+    ``settle_seconds`` of a stream and every second after, and the applied rolls ease towards the solution with time constant
     ``ease_seconds`` (a new solution never jumps the stylizer's input). A stream's rolls are its
     rig's, so they hold for as long as the performer streams: :meth:`clear` starts a performer's
     calibration afresh; :meth:`calibrate` sets it from a whole clip at once (the offline path) and
@@ -275,7 +276,7 @@ class StreamRolls:
         self.skeleton = skeleton
         self.joints = [skeleton.index(n) for n in ARM_JOINTS]
         self._every = max(1, round(solve_seconds * fps))
-        self._settle = round(settle_seconds * fps)
+        self.settle_frames = self._settle = round(settle_seconds * fps)
         self._late = max(1, round(fps))
         self._gain = 1.0 - np.exp(-1.0 / (fps * ease_seconds))
         n = len(self.joints)
@@ -286,12 +287,13 @@ class StreamRolls:
         self.target = np.zeros((performers, n))
         self.angles = np.zeros((performers, n))
         self.frozen = np.zeros(performers, dtype=bool)
+        self._restarted = np.zeros(performers, dtype=bool)
 
     def clear(self, which: np.ndarray | slice) -> None:
         """These performers' calibration starts again from nothing (no rolls)."""
         for a in (self._second, self._first, self._count, self.frames, self.target, self.angles):
             a[which] = 0
-        self.frozen[which] = False
+        self.frozen[which] = self._restarted[which] = False
 
     def calibrate(self, performer: int, motion: Motion) -> None:
         """One performer's rolls from a whole clip, applied at once and kept."""
@@ -302,23 +304,38 @@ class StreamRolls:
         """A frame's rotations ``(P, J, 4)`` with each performer's rolls as they stand."""
         return apply_rolls(rotations, self.joints, self.angles)
 
-    def observe(self, rotations: np.ndarray, positions: np.ndarray) -> None:
+    def observe(self, rotations: np.ndarray, positions: np.ndarray) -> np.ndarray:
         """Add one model frame ``(P, J, 4)`` (the stream's own rotations) with its global joint
-        positions ``(P, J, 3)`` (which the rolls do not change), and move the rolls on."""
+        positions ``(P, J, 3)`` (which the rolls do not change), and move the rolls on. Returns
+        the performers whose rig has just been measured within their first seconds, its rolls
+        :data:`RESTART_DEGREES` or more from the ones applied until then: they are applied at once,
+        and a stylizer with a memory can forget the frames before."""
         live = ~self.frozen
+        measured = np.zeros(len(live), dtype=bool)
         if not live.any():
-            return
+            return measured
         moments = arm_moments(rotations[live][None], arms_hang(positions[live], self.skeleton)[None],
                               self.joints)
         for total, add in zip((self._second, self._first, self._count), moments):
             total[live] += add
         self.frames[live] += 1
         n = self.frames
-        due = live & (np.where(n <= self._settle, n % self._every, n % self._late) == 0)
+        # every frame until the rig is measured, then every solve_seconds, every second after
+        early = n <= self._settle
+        due = live & ((np.where(early, n % self._every, n % self._late) == 0) | (early & ~self._restarted))
         if due.any():
             self.target[due] = self.model.solve(self._second[due], self._first[due], self._count[due])
         turn = np.angle(np.exp(1j * (self.target - self.angles)))  # the short way round
-        self.angles = np.where(live[:, None], self.angles + self._gain * turn, self.angles)
+        measured = (due & ~self._restarted & (n <= self._settle)
+                    & (np.abs(turn).max(axis=-1) >= np.radians(RESTART_DEGREES)))
+        self._restarted |= measured
+        gain = np.where(measured, 1.0, self._gain)[:, None]
+        self.angles = np.where(live[:, None], self.angles + gain * turn, self.angles)
+        return measured
+
+    def hanging_frames(self, performer: int) -> np.ndarray:
+        """``(2,)``: the frames each arm (left, right) of a performer has hung in so far."""
+        return self._count[performer, ::len(CHAINS[0])].copy()
 
     def undo(self, rotations: np.ndarray) -> np.ndarray:
         """Conformed rotations ``(P, J, 4)`` turned back to each stream's own joint frames."""

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.features import facing_yaw
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.retarget import retarget
 from motion_style_ros.core.skeleton import canonical
@@ -35,10 +36,17 @@ def clip_paths(root: Path | None = None) -> list[Path]:
     return [Path(info.path) for info in infos]
 
 
+def start_frame(path: Path) -> int:
+    """The clip's first frame of motion: CMU files begin with a calibration T-pose at the origin,
+    a couple of metres from where the motion starts (no rig streams that)."""
+    return 1 if "cmu" in Path(path).parts else 0
+
+
 def live_input(path: Path) -> Motion:
-    """A clip as the ``bvh_player`` streams it: retargeted to the canonical skeleton, nothing more."""
+    """A clip as the ``bvh_player`` streams it (from :func:`start_frame`): retargeted to the
+    canonical skeleton, nothing more."""
     source = bvh.read(path).to_motion().check_finite(str(path))
-    return retarget(source, canonical())
+    return retarget(source, canonical())[start_frame(path):]
 
 
 def hands_up(motion: Motion) -> float:
@@ -51,24 +59,36 @@ def hands_up(motion: Motion) -> float:
 
 
 def compare(live: Motion, offline: Motion, settle_seconds: float = SETTLE_SECONDS) -> dict:
-    """Live against offline output, frame for frame, from ``settle_seconds`` on: mean
-    pelvis-relative joint distance (cm), mean local rotation difference (degrees, every joint but
-    the static root), and the fraction of frames with a hand above its shoulder in each."""
+    """Live against offline output, frame for frame, from ``settle_seconds`` on. The pose: mean
+    joint distance (cm) in each frame's own pelvis-centred, facing-aligned frame, and mean local
+    rotation difference (degrees; every joint but the static root, the pelvis's without its
+    heading); the trajectory apart: mean heading difference (degrees) and root distance (cm); and
+    the fraction of frames with a hand above its shoulder in each."""
     n = min(live.n_frames, offline.n_frames)
     start = int(round(settle_seconds * live.fps))
     if n <= start:
         return {"frames": 0}
-    a, b = live[start:n], offline[start:n]
-    pelvis = live.skeleton.pelvis
-    ga, gb = a.global_positions(), b.global_positions()
-    rel_a, rel_b = ga - ga[:, pelvis:pelvis + 1], gb - gb[:, pelvis:pelvis + 1]
-    joints = [j for j in range(live.skeleton.n_joints) if j != pelvis and live.skeleton.parents[j] >= 0]
+    sk = live.skeleton
+    posed, headings = [], []
+    for m in (live[start:n], offline[start:n]):
+        g = m.global_positions()
+        yaw = facing_yaw(g, sk)
+        unturn = rot.from_yaw(-yaw)
+        rel = rot.rotate(unturn[:, None], g - g[:, sk.pelvis:sk.pelvis + 1])
+        q = m.rotations.copy()
+        q[:, sk.pelvis] = rot.multiply(unturn, q[:, sk.pelvis])
+        posed.append((rel, q, m.root_positions))
+        headings.append(yaw)
+    (rel_a, q_a, root_a), (rel_b, q_b, root_b) = posed
+    joints = [j for j in range(sk.n_joints) if j != sk.pelvis and sk.parents[j] >= 0]
     return {
         "frames": n - start,
         "joint_distance_cm": float(100.0 * rot.norm(rel_a - rel_b)[:, joints].mean()),
-        "rotation_deg": float(np.degrees(rot.angle_between(a.rotations[:, 1:], b.rotations[:, 1:])).mean()),
-        "hands_up_live": hands_up(a),
-        "hands_up_offline": hands_up(b),
+        "rotation_deg": float(np.degrees(rot.angle_between(q_a[:, 1:], q_b[:, 1:])).mean()),
+        "heading_deg": float(np.degrees(np.abs(np.angle(np.exp(1j * (headings[0] - headings[1]))))).mean()),
+        "root_distance_cm": float(100.0 * rot.norm(root_a - root_b).mean()),
+        "hands_up_live": hands_up(live[start:n]),
+        "hands_up_offline": hands_up(offline[start:n]),
     }
 
 

@@ -38,8 +38,13 @@ class BvhPlayer(PlayerNode):
                                "are matched (start the consumers first, miss no frame)", 0, 1000)
         layout = self.param("layout", "",
                             "JointState layout YAML (config/layouts/); empty: canonical")
+        start = self.param("start_frame", 0, "first frame to play (CMU files begin with a calibration "
+                           "T-pose at the origin: 1 skips it)", 0, 10_000_000)
         self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
         self.frames, fps = load(path, self.layout)
+        if start >= len(self.frames):
+            raise MotionStyleError(f"parameter start_frame is {start}; {path} has {len(self.frames)} frames")
+        self.frames = self.frames[start:]
         self.index = 0
         self.publisher = self.create_publisher(JointState, topic, qos_profile_sensor_data)
         self.create_timer(1.0 / (fps * rate), self._tick)

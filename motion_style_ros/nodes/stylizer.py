@@ -35,7 +35,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.nodes import PlayerNode, joint_state, run
 from motion_style_ros.runtime.offline import NODE_SETTINGS, canonical_clip, default_model
-from motion_style_ros.runtime.session import RecurrentSession
+from motion_style_ros.runtime.session import RecurrentSession, describe_calibration
 from motion_style_ros.runtime.windowed import MAX_SPREAD, WindowedSession
 
 NAME = "stylizer"
@@ -84,6 +84,7 @@ class Performer:
         # (publish time, latency from DDS receipt to publication), both ns
         self.latencies: deque[tuple[int, int]] = deque()
         self.reported_drops = 0
+        self.calibration_state = "measuring"  # logged when it changes
         self.names: tuple[str, ...] = ()
         self.slots = np.zeros(0, dtype=np.intp)  # input index of each layout name
         self.extra = np.zeros(0, dtype=np.intp)  # input index of each other name (passed through)
@@ -425,10 +426,17 @@ class Stylizer(PlayerNode):
             p.latencies.popleft()
         ms = 1e-6 * np.array([latency for _, latency in p.latencies])
         p50, p99 = (np.percentile(ms, [50, 99]) if len(ms) else (np.nan, np.nan))
+        calibration = p.session.calibration()
+        if calibration["state"] not in (p.calibration_state, "measuring"):  # once per change
+            unmeasured = calibration["state"] == "arms never hung"
+            (self.get_logger().warn if unmeasured else self.get_logger().info)(
+                f"{p.input}: {describe_calibration(calibration)}")
+        p.calibration_state = calibration["state"]
         values = {**p.counts, "dropped": dropped, "latency_p50_ms": f"{p50:.3f}",
                   "latency_p99_ms": f"{p99:.3f}", "output_latency_ms": f"{p.latency_ns * 1e-6:.3f}",
                   "model": str(p.session.model.path),
                   "backend": self.backend, "input": p.input,
+                  **{f"calibration_{k}": v for k, v in calibration.items()},
                   **{k: self.settings[k] for k in ("target_style", "alpha", "mix_style", "mix_weight",
                                               "latent_seed", "seed_spread", "reference")}}
         status = DiagnosticStatus(

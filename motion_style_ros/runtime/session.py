@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.conform import ANKLES, StreamGround, StreamRolls
+from motion_style_ros.core.conform import ANKLES, ROLL_MIN_FRAMES, StreamGround, StreamRolls
 from motion_style_ros.core.features import FEATURE_VERSION, UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.motion import Motion, forward_kinematics
@@ -152,6 +152,7 @@ class RecurrentSession:
         self._contacts = [self.skeleton.index(n) for n in CONTACTS]
         self._ankle_joints = [self.skeleton.index(n) for n in ANKLES]  # what grounding and foot locks read
         self._fresh = np.ones(self.performers, dtype=bool)
+        self._remeasured = np.zeros(self.performers, dtype=bool)  # see StreamRolls.observe
         self._phase = 0.0
 
     # --- controls ---------------------------------------------------------------------------
@@ -183,6 +184,26 @@ class RecurrentSession:
             self._scale.clear(which)
         self._fresh[which] = True
         self._encoder.reset(which)
+
+    def calibration(self, performer: int = 0) -> dict:
+        """How far a performer's stream has been measured (arm rolls, size; see
+        :mod:`motion_style_ros.core.conform`, :mod:`motion_style_ros.core.proportions`): ``state``
+        is ``off``, ``measuring`` (the stream's first seconds), ``measured``, ``clip`` (a whole
+        clip's, offline) or ``arms never hung`` (the rolls cannot be measured yet: the stream goes
+        on unconformed), with the rolls in degrees and the scale."""
+        if self._rolls is None:
+            return {"state": "off"}
+        rolls = self._rolls
+        if rolls.frozen[performer]:
+            state = "clip"
+        elif rolls.frames[performer] < rolls.settle_frames:
+            state = "measuring"
+        elif (rolls.hanging_frames(performer) < ROLL_MIN_FRAMES).any():
+            state = "arms never hung"
+        else:
+            state = "measured"
+        return {"state": state, "arm_rolls_deg": np.degrees(rolls.angles[performer]).round(1).tolist(),
+                "scale": round(float(self._scale.scale[performer]), 3)}
 
     # --- streaming ----------------------------------------------------------------------------
 
@@ -296,7 +317,7 @@ class RecurrentSession:
             self._ground.update(self._encoder.positions[:, self._ankle_joints] + lift[:, None])
         if self._rolls is not None:
             positions = self._encoder.positions
-            self._rolls.observe(q, positions)
+            self._remeasured = self._rolls.observe(q, positions)
             self._scale.observe(positions[:, self._contacts] - positions[:, self.skeleton.pelvis, None])
         return features, lift
 
@@ -317,9 +338,14 @@ class RecurrentSession:
                 self._foot_lock.reset(fresh)
                 self._standing.reset(fresh)
         style, alpha = self._controls.advance(1.0 / self.fps)
+        # A performer whose rig has just been measured (StreamRolls.observe) starts from the learned
+        # initial state: nothing the network remembers comes from its unconformed first frames.
+        # Its trajectory goes on as it was.
+        restate = fresh | self._remeasured
+        self._remeasured = np.zeros(self.performers, dtype=bool)
         out = self.model.run(
             features=features, style=style, alpha=alpha, state=self._state,
-            reset=fresh[:, None].astype(np.float32),
+            reset=restate[:, None].astype(np.float32),
         )
         self._state = out["state_out"]
         self._fresh[:] = False
@@ -390,6 +416,17 @@ class RecurrentSession:
                 f"{norm[k, joint]:.3g}; expected unit quaternions (w, x, y, z)"
             )
         return q / norm[..., None], p, single
+
+
+def describe_calibration(calibration: dict) -> str:
+    """One line for a log: what :meth:`RecurrentSession.calibration` found."""
+    if calibration["state"] == "off":
+        return "stream conditioning is off"
+    line = (f"stream measured ({calibration['state']}): arm rolls {calibration['arm_rolls_deg']} deg, "
+            f"size {calibration['scale']:g} of the training performers'")
+    if calibration["state"] == "arms never hung":
+        line += "; the arms stay as they come until they hang by the body for a moment"
+    return line
 
 
 def _positive(value: float, what: str) -> float:
