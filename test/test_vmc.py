@@ -550,3 +550,21 @@ def test_the_rig_is_kept_while_the_avatar_stays_and_built_anew_for_another(human
     decoder(other[:1])
     assert decoder.rig is not rig
     assert not np.allclose(decoder.rig.offsets[1:], rig.offsets[1:])
+
+
+def test_blendshapes_in_a_bundle_after_the_pose_are_learnt_as_that_frames(sent):
+    """A sender that bundles the whole body with OK and T, then the blendshapes in a bundle of their
+    own: after two frames of learning the blendshapes go with the pose they were sent after."""
+    datagrams = []
+    for k, f in enumerate(sent):
+        m = _messages(f, k / 60)
+        blend = [x for x in m if x.address in (vmc.BLEND_ADDRESS, vmc.APPLY_ADDRESS)]
+        datagrams += [_bundle([x for x in m if x not in blend]), _bundle(blend)]
+    asm = vmc.VmcFrameAssembler()
+    got = [f for d in datagrams for f in asm.feed_datagram(d)]
+    assert asm.last_key == ("apply",)
+    assert len(got) == len(sent)  # one frame per pose: a tail is never a frame of its own
+    for g, f in zip(got[3:], sent[3:]):
+        assert g.blendshapes == f.blendshapes
+        np.testing.assert_array_equal(g.bones["LeftHand"][0], f.bones["LeftHand"][0])
+        np.testing.assert_allclose(g.bones["LeftHand"][1], f.bones["LeftHand"][1], atol=1e-7)

@@ -207,7 +207,9 @@ class VmcFrameAssembler:
     name, Blend/Apply, OK, T; Blend/Val and pass-through messages belong to the frame they arrive
     in), a key that the frame already holds starts the next frame, and the key that came last before
     such a repetition is learnt as the sender's last one: once known, it ends a frame at once, so
-    no frame waits for the next one. A sender that changes its order is learnt again (a new last
+    no frame waits for the next one. Keys that arrive after that end and before the sender's first
+    key (blendshapes sent in a bundle of their own after a whole-body bundle) show that the last key
+    comes later, and it is learnt again. A sender that changes its order is learnt again (a new last
     key is taken when two frames in a row agree on it, so a lost datagram does not unlearn it).
     Frames are never cut by time: a frame whose last message is lost ends with the next frame's
     first one, late but whole.
@@ -230,6 +232,8 @@ class VmcFrameAssembler:
         self.ok: tuple[int, ...] | None = None
         self.counts: Counter[str] = Counter(frames=0, malformed=0, incomplete=0, ignored=0)
         self.last_key: tuple[str, ...] | None = None
+        self.first_key: tuple[str, ...] | None = None
+        self._bundle_keys: set[tuple[str, ...]] = set()
         self._candidate: tuple[str, ...] | None = None
         self._start_frame()
 
@@ -260,11 +264,20 @@ class VmcFrameAssembler:
                 self.counts["ignored"] += 1
             return []
         frames = []
+        if self.first_key is None:
+            self.first_key = key
         if key in self._keys:  # the pattern starts again: the frame before ended without its last key
             self._learn(self._previous_key)
             frames.append(self.end_frame())
+        elif key == self.first_key and self._keys:
+            # Keys came after the frame's end and before the next frame's first key: they were the
+            # frame's tail (blendshapes in a bundle of their own after the pose, say), so its last
+            # key comes later. Learnt from two frames in a row; the tail goes with the next frame.
+            self._learn(self._previous_key)
+            self._keys = set()
         self._take(key, address, args, message)
         self._keys.add(key)
+        self._bundle_keys.add(key)
         self._previous_key = key
         if key == self.last_key:
             frames.append(self.end_frame())
@@ -330,6 +343,10 @@ class VmcFrameAssembler:
         if not self._pending:
             self._start_frame()
             return None
+        if not any(k[0] in ("root", "bone") for k in self._keys):
+            # No pose in it (blendshapes, Thru): it rides with the next frame, which is not doubled.
+            self._keys = set()
+            return None
         blend, apply, passthrough = self._blend, self._apply, tuple(self._passthrough)
         self._start_frame()
         if any(b not in self.bones for b in self.required):
@@ -349,12 +366,15 @@ class VmcFrameAssembler:
             return []
         frames = []
         names = set()
+        self._bundle_keys = set()
         for m in packet.messages:
             frames += self.feed(m.message.address, m.message.params, m.message)
             if m.message.address == BONE_ADDRESS and m.message.params:
                 names.add(m.message.params[0])
-        if data.startswith(b"#bundle") and self._pending and all(b in names for b in self.required):
-            # A bundle with every required bone is a frame of its own (one bundle per frame).
+        if data.startswith(b"#bundle") and self._pending and all(b in names for b in self.required) \
+                and (self.last_key is None or self.last_key in self._bundle_keys):
+            # A bundle with every required bone (and the sender's last key, once learnt) is a frame
+            # of its own (one bundle per frame).
             if self.last_key is None:
                 self.last_key = self._previous_key
             frames.append(self.end_frame())
