@@ -316,7 +316,8 @@ def test_a_lost_datagram_neither_mixes_poses_nor_unlearns_the_pattern(sent):
 
 def _link_round_trip(frames, delay_frames=0, period_ns=16_666_667):
     """Frames through VmcLink.receive, the JointState values straight back through send (what the
-    relay node does): the frames a marionette then receives, and the JointStates."""
+    relay node does; with ``delay_frames``, a stylizer that changes nothing): the frames a
+    marionette then receives, and the JointStates."""
     link = vmc.VmcLink()
     asm = vmc.VmcFrameAssembler()
     received, states = [], []
@@ -324,7 +325,11 @@ def _link_round_trip(frames, delay_frames=0, period_ns=16_666_667):
                           for k, f in enumerate(frames)):
         names, values = link.receive(f, 10**9 + k * period_ns)
         states.append((names, values))
-        bundle = link.send(names, values, 10**9 + k * period_ns, delay_frames * period_ns, k / 60)
+        # What a stylizer with that latency sends back: its pass-through names are the shown frame's.
+        back = values.copy()
+        n_body = len(link.layout.names)
+        back[n_body:] = states[max(0, k - delay_frames)][1][n_body:]
+        bundle = link.send(names, back, 10**9 + k * period_ns, delay_frames * period_ns, k / 60)
         received += vmc.VmcFrameAssembler().feed_datagram(bundle.dgram)
     return received, states, link
 
@@ -568,3 +573,20 @@ def test_blendshapes_in_a_bundle_after_the_pose_are_learnt_as_that_frames(sent):
         assert g.blendshapes == f.blendshapes
         np.testing.assert_array_equal(g.bones["LeftHand"][0], f.bones["LeftHand"][0])
         np.testing.assert_allclose(g.bones["LeftHand"][1], f.bones["LeftHand"][1], atol=1e-7)
+
+
+def test_a_finger_changed_on_its_way_back_goes_out_as_it_came_back(sent):
+    link = vmc.VmcLink()
+    (frame,) = vmc.VmcFrameAssembler().feed_datagram(vmc.frame_bundle(sent[0], 0.0).dgram)
+    names, values = link.receive(frame, 10**9)
+    changed = values.copy()
+    i = names.index("LeftIndexProximal_rz")
+    changed[i] += 0.3  # a node between bent one finger joint
+    (out,) = vmc.VmcFrameAssembler().feed_datagram(link.send(names, changed, 10**9, 0, 0.0).dgram)
+    want = rotations_from_values(changed[i - 2: i + 1])[0]
+    got = vmc.unity_to_core_rotation(out.bones["LeftIndexProximal"][1])
+    assert np.degrees(rot.angle_between(want, got)) < 1e-4
+    np.testing.assert_array_equal(out.bones["LeftIndexProximal"][0], sent[0].bones["LeftIndexProximal"][0])
+    for b in vmc.EXTRA_BONES:  # the others bit for bit
+        if b != "LeftIndexProximal":
+            assert out.raw[b].dgram == frame.raw[b].dgram

@@ -48,6 +48,7 @@ from motion_style_ros.io.joint_state import (
     JointStateLayout,
     rotation_names,
     rotation_values,
+    rotations_from_values,
 )
 
 DEFAULT_HOST = "127.0.0.1"
@@ -60,6 +61,7 @@ OK_ADDRESS = "/VMC/Ext/OK"
 BLEND_ADDRESS = "/VMC/Ext/Blend/Val"
 APPLY_ADDRESS = "/VMC/Ext/Blend/Apply"
 RECEIVE_BUFFER = 4 * 1024 * 1024  # bytes of socket buffer asked for (the kernel may cap it: rmem_max)
+STALE_NS = 100_000_000  # an output whose frame is further than this from every kept one: counted
 
 # Unity's humanoid body bones, parents first; optional bones hang off their nearest present ancestor.
 UNITY_PARENTS: dict[str, str | None] = {
@@ -737,6 +739,7 @@ class _Received:
     rig_local: np.ndarray  # (J, 4) its local rotations (the root folded into the hips)
     rig_hips: np.ndarray  # (3,) its hip centre
     rig_pelvis: np.ndarray  # (3,) its Hips joint
+    extras: dict[str, np.ndarray]  # pass-through bone -> the 3 JointState values published for it
 
 
 def _hip_centre(positions: np.ndarray, joints: dict[str, int]) -> np.ndarray:
@@ -756,7 +759,9 @@ class VmcLink:
     the root transform (with its scale and offset), fingers, eyes, jaw, blendshapes, OK and every
     pass-through message are that frame's, as they came. So a stylizer that changes nothing
     returns the sender's frame (to float32), and a stylized pose keeps the sender's rest pose and
-    proportions. ``/VMC/Ext/T`` goes out as the time given to :meth:`send`. Before any frame was
+    proportions. A finger, eye or jaw whose JointState values come back changed (a node between
+    changed them) goes out as they came back. ``/VMC/Ext/T`` goes out as the time given to
+    :meth:`send`. Before any frame was
     received, stylized states go out on a T-posed rig of canonical proportions (:class:`VmcEncoder`).
     """
 
@@ -810,7 +815,9 @@ class VmcLink:
         kept = _Received(stamp_ns, frame, retarget, canon_rot[0],
                          _hip_centre(canon_pos[0], retarget.target_tpose.joints), rig_rot[0],
                          rig_m.rotations[0],
-                         _hip_centre(rig_pos[0], retarget.source_tpose.joints), rig_pos[0, 0])
+                         _hip_centre(rig_pos[0], retarget.source_tpose.joints), rig_pos[0, 0],
+                         {b: values[len(values) - 3 * len(extras) + 3 * i:][:3]
+                          for i, b in enumerate(extras)})
         with self._lock:
             self._received.append(kept)
             while stamp_ns - self._received[0].stamp_ns > self.keep_ns or \
@@ -843,12 +850,18 @@ class VmcLink:
             self._fallback = self._fallback or VmcEncoder()
             motion = Motion.from_rotations(canonical(), rotations[None], root[None], 30.0)
             return frame_bundle(self._fallback(motion)[0], time)
-        if shown.stamp_ns != stamp_ns - delay_ns:
-            self.counts["sent_nearest_frame"] += 1
-        return self._bundle(shown, rotations, root, time)
+        if abs(shown.stamp_ns - (stamp_ns - delay_ns)) > STALE_NS:
+            self.counts["sent_stale_frame"] += 1
+        where = {n: i for i, n in enumerate(names)}
+        extras = {b: np.asarray([positions[where[n]] for n in rotation_names([b])], dtype=np.float64)
+                  for b in shown.extras if all(n in where for n in rotation_names([b]))}
+        return self._bundle(shown, rotations, root, time, extras)
 
-    def _bundle(self, shown: _Received, rotations: np.ndarray, root: np.ndarray,
-                time: float) -> osc_bundle.OscBundle:
+    def _bundle(self, shown: _Received, rotations: np.ndarray, root: np.ndarray, time: float,
+                extras: dict[str, np.ndarray] | None = None) -> osc_bundle.OscBundle:
+        """``extras``: pass-through bones' JointState values as they came back; one that differs
+        from what was published for the frame (a node changed it on the way) is sent as it came
+        back, the others as the sender sent them."""
         ret, frame = shown.retarget, shown.frame
         rig = ret.source
         out = Motion.from_rotations(canonical(), rotations[None], root[None], 30.0)
@@ -877,8 +890,16 @@ class VmcLink:
         for j, b in enumerate(rig.names):
             p = hips_p if j == 0 else frame.bones[b][0]
             messages.append(build_message(BONE_ADDRESS, _transform_args(b, p, local_q[j])))
-        messages += [frame.raw.get(b) or build_message(BONE_ADDRESS, _transform_args(b, *frame.bones[b]))
-                     for b in EXTRA_BONES if b in frame.bones]
+        for b in EXTRA_BONES:
+            if b not in frame.bones:
+                continue
+            back = (extras or {}).get(b)
+            if back is not None and not np.array_equal(back, shown.extras[b]) and np.isfinite(back).all():
+                q = core_to_unity_rotation(rotations_from_values(back)[0])
+                messages.append(build_message(BONE_ADDRESS, _transform_args(b, frame.bones[b][0], q)))
+            else:
+                messages.append(frame.raw.get(b) or build_message(BONE_ADDRESS,
+                                                                  _transform_args(b, *frame.bones[b])))
         if frame.passthrough:
             messages += list(frame.passthrough)
         else:  # a frame made, not received
