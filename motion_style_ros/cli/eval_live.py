@@ -79,7 +79,8 @@ def run(args: argparse.Namespace, backend: str) -> int:
     if args.live_clips:
         paths = [p for p in paths if any(k in p.name for k in args.live_clips.split(","))]
     if not paths:
-        raise MotionStyleError("no CMU or Xia clips found (unpack the datasets: ../shared/datasets/unpack.sh)")
+        raise MotionStyleError("no CMU or Xia clips found (unpack the datasets: "
+                               "../shared/datasets/unpack.sh)")
     settings = node_settings(backend)
     offline = stylizer(backend, args.model, args.alpha, args.threads, **settings)
     layout = JointStateLayout.canonical()
@@ -105,8 +106,8 @@ def run(args: argparse.Namespace, backend: str) -> int:
                     q, p = zip(*(layout.decode(*v) for _, v in kept))
                     got = Motion.from_rotations(sk, np.stack(q), np.stack(p), source.fps)
                     want = offline(reference, style)
-                    want = Motion.from_rotations(sk, want.rotations[ks - delay], want.root_positions[ks - delay],
-                                                 source.fps)
+                    at = ks - delay
+                    want = Motion.from_rotations(sk, want.rotations[at], want.root_positions[at], source.fps)
                     row.update(live.compare(got, want, settle_seconds=0.0))
                 else:
                     row["frames"] = 0

@@ -11,7 +11,10 @@ Every canonical bone runs along its joint's local X axis, so turning a joint's f
 constant angle (and its child's local rotation by the inverse) leaves every position unchanged.
 For each arm chain (Shoulder -> UpperArm -> LowerArm -> Hand) the constant rolls that make the
 clip's local rotations most typical of the training data (Gaussian 6D-rotation statistics per
-joint) are found together by dynamic programming over a grid of angles.
+joint, on the frames where the arm hangs) are found together by dynamic programming over a grid
+of angles, from the rotation matrices' moments (:class:`RollModel`), so that a live stream
+(:class:`StreamRolls`) needs no frames kept. A chain is rolled only as far as that clearly beats
+not rolling it: a rig with the training data's conventions is left alone.
 
 Rigs also disagree on how high the ankle joint sits above the sole: retargeted CMU ankles rest
 about 6 cm lower than Bandai's, so the canonical feet sink into the floor and a stylizer takes the
@@ -97,6 +100,9 @@ ROLL_EVIDENCE = (40.0, 55.0)
 UNROLLED = ("Hand_L", "Hand_R")
 RESTART_DEGREES = 10.0  # first measured rolls this far off: applied at once, the stylizer's memory reset
 ROLL_MIN_FRAMES = 1  # hanging-arm frames a chain needs before its rolls are estimated
+# With fewer hanging-arm frames than this, a chain is rolled only on evidence above the ramp's top
+# (all or nothing): a Xia jump's first 3 frames reached its middle (25 deg, undone 3 frames later).
+ROLL_SURE_FRAMES = 6
 _D6 = [0, 3, 6, 1, 4, 7]  # the 6D components among a row-major 3x3 matrix's entries
 
 
@@ -161,6 +167,7 @@ class RollModel:
             frames = count[:, c * n]
             gain = (unrolled - total.min(axis=1)) / np.maximum(frames, 1)
             low, high = ROLL_EVIDENCE
+            low = np.where(frames >= ROLL_SURE_FRAMES, low, high - 1e-6)
             weight = np.clip((gain - low) / (high - low), 0.0, 1.0) * (frames >= ROLL_MIN_FRAMES)
             step = self.angles[1]
             rolls = np.angle(np.exp(1j * (self.angles[choice] + offset * step)))  # the short way
@@ -260,10 +267,10 @@ class StreamRolls:
     """:func:`conform_rolls` for ``performers`` live streams, from each stream itself.
 
     Each model frame adds its hanging arms' rotations to the performer's moments; the rolls are
-    solved on every frame until they are first found, then every ``solve_seconds`` for the first
-    ``settle_seconds`` of a stream and every second after, and the applied rolls ease towards the solution with time constant
-    ``ease_seconds`` (a new solution never jumps the stylizer's input). A stream's rolls are its
-    rig's, so they hold for as long as the performer streams: :meth:`clear` starts a performer's
+    solved on every frame until they are first found (and then applied at once: :meth:`observe`),
+    then every ``solve_seconds`` for the first ``settle_seconds`` of a stream and every second
+    after, and the applied rolls ease towards later solutions with time constant
+    ``ease_seconds`` (they never jump the stylizer's input). A stream's rolls are its rig's, so they hold for as long as the performer streams: :meth:`clear` starts a performer's
     calibration afresh; :meth:`calibrate` sets it from a whole clip at once (the offline path) and
     keeps it.
     """

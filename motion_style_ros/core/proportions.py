@@ -36,7 +36,8 @@ CONTACTS = ("Foot_L", "Foot_R", "Toes_L", "Toes_R")
 def _stance_sums(root_velocity: np.ndarray, leg_velocity: np.ndarray, scale: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """The least-squares sums ``(-v . l, l . l)`` of each performer's stance foot for one frame:
-    ``root_velocity`` ``(P, 2)`` and ``leg_velocity`` ``(P, K, 2)`` of the contact points (ankles and toes), horizontal m/s."""
+    ``root_velocity`` ``(P, 2)`` and ``leg_velocity`` ``(P, K, 2)`` of the contact points (ankles
+    and toes), horizontal m/s."""
     world = root_velocity[:, None] + scale[:, None, None] * leg_velocity  # (P, K, 2)
     foot = np.argmin(np.square(world).sum(axis=-1), axis=1)
     leg = leg_velocity[np.arange(len(foot)), foot]
@@ -85,9 +86,10 @@ class StreamScale:
     scale and added up from where the last frame left them. Heights pass as they are: a shorter
     performer's lower pelvis puts the canonical feet below the floor, which the session's
     grounding (:class:`~motion_style_ros.core.conform.StreamGround`) takes up as it does another
-    rig's ankle height, and adds back to the output. :meth:`to_canonical` maps a frame's root in, :meth:`observe` learns
-    from it, :meth:`to_stream` maps stylized root positions back out. The scale is the rig's: it
-    holds across gaps until :meth:`clear`; :meth:`calibrate` sets it from a whole clip.
+    rig's ankle height, and adds back to the output. :meth:`to_canonical` maps a frame's root in,
+    :meth:`observe` learns from it, :meth:`to_stream` maps stylized root positions back out. The
+    scale is the rig's: it holds across gaps until :meth:`clear`; :meth:`calibrate` sets it from a
+    whole clip.
     """
 
     def __init__(self, performers: int, fps: float, reference: float = 1.0, ease_seconds: float = 0.2
@@ -143,7 +145,8 @@ class StreamScale:
                                          self.target * self.reference)
             self._cross += np.where(have, cross, 0.0)
             self._square += np.where(have, square, 0.0)
-            self.target = np.where(self.frozen, self.target, _estimate(self._cross, self._square, self.reference))
+            estimate = _estimate(self._cross, self._square, self.reference)
+            self.target = np.where(self.frozen, self.target, estimate)
         self._relative = rel.copy()
         self.scale = np.where(self.frozen, self.scale, self.scale + self._gain * (self.target - self.scale))
 

@@ -132,7 +132,8 @@ def proportions(make_session, clips: list[Motion], styles: list[str], judge,
         if clip.fps not in fps_sessions:
             fps_sessions[clip.fps] = make_session(clip.fps)
         out = stream(fps_sessions[clip.fps], scaled(clip, scale), style)
-        canonical_size = Motion.from_rotations(out.skeleton, out.rotations, out.root_positions / scale, out.fps)
+        canonical_size = Motion.from_rotations(out.skeleton, out.rotations, out.root_positions / scale,
+                                               out.fps)
         recognised = judge.judge([canonical_size]).labels[0] == style
         skating = metrics.foot_skating(on_performer(out, scale)) / scale
         results[scale].append((recognised, skating))

@@ -267,6 +267,7 @@ class WindowedSession(RecurrentSession):
         if self._standing is not None:
             frames = self._standing(frames, self._history[np.arange(self.performers), due - n - 1])
         self._fresh[:] = False
+        self._remeasured[:] = False  # a window forgets unconformed frames by itself, within a window
         self._n += 1
         frame = self._placed(self._decoder(frames), self._ankles[np.arange(self.performers), slot])
         shown_lift = self._lifts[np.arange(self.performers), slot]  # the lift of the frame emitted
