@@ -486,9 +486,15 @@ def test_sender_clock_keeps_the_senders_rhythm_and_falls_back_on_arrival():
     late = np.array([clock.stamp(1.0 + k / 60, base + 1_100_000_000 + k * 16_666_667) for k in range(400)])
     assert np.all(np.diff(late) >= 16_666_000) and np.all(np.diff(late) <= 1.1 * 16_666_667 + 1000)
     assert 0 <= base + 1_100_000_000 + 399 * 16_666_667 - late[-1] <= 100_000_000
+    # The sender that was behind catches up (its frames arrive 0.4 s earlier against their time than
+    # the clock had come to follow): slewed down, never a step shorter than half a frame.
+    t0, a0 = 1.0 + 400 / 60, base + 1_100_000_000 + 400 * 16_666_667 - 400_000_000
+    caught = np.array([clock.stamp(t0 + k / 60, a0 + k * 16_666_667) for k in range(120)])
+    assert np.all(np.diff(caught) >= 8_333_000)
+    assert caught[-1] <= a0 + 119 * 16_666_667
     # A time that jumps ahead: anchored at arrival at once; never backwards.
-    assert clock.stamp(50.0, base + 9 * 10**9) == base + 9 * 10**9
-    assert clock.stamp(60.0, base) == base + 9 * 10**9 + 1
+    assert clock.stamp(50.0, base + 12 * 10**9) == base + 12 * 10**9
+    assert clock.stamp(60.0, base) == base + 12 * 10**9 + 1
 
 
 def test_a_burst_of_datagrams_is_read_without_kernel_drops(sent):

@@ -206,6 +206,9 @@ def run_stream(sent, start, listener, bridge_port, out_port, middle, bundling):
     while int(bridge_status()["sent"]) - int(baseline["sent"]) < len(sent) and time.monotonic() < deadline:
         listener.executor.spin_once(timeout_sec=0.05)
     listener.executor.spin_once(timeout_sec=1.5)
+    deadline = time.monotonic() + 60  # drain what the test node's readers still hold
+    while min(len(states), len(stylized), len(blendshapes)) < len(sent) and time.monotonic() < deadline:
+        listener.executor.spin_once(timeout_sec=0.05)
     final = bridge_status()
     counts = {k: (int(v) - int(baseline.get(k, 0)) if v.isdigit() and k != "receive_buffer_bytes" else v) for k, v in final.items()}
     return dict(received=marionette.frames, states=list(states), stylized=list(stylized),

@@ -662,13 +662,15 @@ class SenderClock:
     moment that then sends its backlog keeps its stamps) it catches up at ``catch_up`` (10 %: frame
     steps 1.1 times longer) until they trail by less. A time that does not advance (an epoch time sent as float32 moves in 128 s
     steps) stamps the frame with its arrival time, and one that would stamp a frame more than
-    ``tolerance`` after its arrival (a time that jumped ahead) anchors the clock at that arrival
-    again. Stamps always increase.
+    ``jump`` (1 s) after its arrival (a time that jumped ahead) anchors the clock at that arrival
+    again; less than that (a sender that was behind catching up) is slewed down like any less
+    delayed arrival. Stamps always increase, by at least half the sender's frame step.
     """
 
     def __init__(self, tolerance: float = 0.1, drift: float = 1e-3, catch_up: float = 0.1,
-                 patience: float = 0.5) -> None:
+                 patience: float = 0.5, jump: float = 1.0) -> None:
         self.tolerance_ns = round(tolerance * 1e9)
+        self.jump_ns = round(jump * 1e9)
         self.drift = drift
         self.catch_up = catch_up
         self.patience = patience
@@ -687,7 +689,7 @@ class SenderClock:
         if sender_time is not None:
             t_ns = round(sender_time * 1e9)
             arrival = now_ns - t_ns  # the offset that would stamp this frame on arrival
-            if self._offset is None or self._offset - arrival > self.tolerance_ns:
+            if self._offset is None or self._offset - arrival > self.jump_ns:
                 self._offset = arrival
             else:
                 step = (sender_time - self._time) * 1e9
