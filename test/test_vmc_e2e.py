@@ -210,7 +210,7 @@ def run_stream(sent, start, listener, bridge_port, out_port, middle, bundling):
     while min(len(states), len(stylized), len(blendshapes)) < len(sent) and time.monotonic() < deadline:
         listener.executor.spin_once(timeout_sec=0.05)
     final = bridge_status()
-    counts = {k: (int(v) - int(baseline.get(k, 0)) if v.isdigit() and k != "receive_buffer_bytes" else v) for k, v in final.items()}
+    counts = {k: (int(v) - int(baseline.get(k, 0)) if v.isdigit() and k not in ("receive_buffer_bytes", "backlog_max") else v) for k, v in final.items()}
     return dict(received=marionette.frames, states=list(states), stylized=list(stylized),
                 blendshapes=list(blendshapes), bridge=counts, sending_seconds=sending)
 
@@ -315,6 +315,7 @@ def check_stream(out, sent, latency_ns):
                                round(float(steps.max()), 3)],
                 kernel_dropped=int(bridge["kernel_dropped"]), datagrams=int(bridge["datagrams"]),
                 receive_buffer_bytes=int(bridge["receive_buffer_bytes"]),
+                bridge_backlog_max=int(bridge["backlog_max"]), stamp_lag_max_ms=float(bridge["stamp_lag_max_ms"]),
                 nominal_shown=float(np.mean(shown == np.arange(len(shown)) - round(latency_ns / 16.67e6))),
                 body_deg_p50=float(np.median(deg)), body_deg_p95=float(np.percentile(deg, 95)),
                 body_deg_max=float(deg.max()), body_m_max=float(metres.max()),

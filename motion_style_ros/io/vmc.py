@@ -26,6 +26,7 @@ out on the sender's own rig, with everything the stylizer does not restyle sent 
 
 from __future__ import annotations
 
+import math
 import queue
 import socket
 import struct
@@ -131,6 +132,23 @@ def _is_number(x: object) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
+def _check_transform(args: Sequence[object], extra: tuple[int, ...]) -> None:
+    """Raises :class:`VmcMessageError` unless ``args`` are a name, 7 finite numbers with a non-zero
+    quaternion, and ``extra`` more (plain Python: this runs for every bone of every frame)."""
+    if len(args) - 8 not in extra:
+        raise VmcMessageError(f"expected {[8 + e for e in extra]} arguments, got {len(args)}")
+    name = args[0]
+    if not isinstance(name, str) or not name:
+        raise VmcMessageError(f"first argument must be a bone name, got {name!r}")
+    numbers = args[1:]
+    if not all(_is_number(x) for x in numbers):
+        raise VmcMessageError(f"{name}: non-numeric values {list(numbers)!r}")
+    if not all(math.isfinite(x) for x in numbers):
+        raise VmcMessageError(f"{name}: non-finite values")
+    if math.hypot(*numbers[3:7]) < 1e-6:
+        raise VmcMessageError(f"{name}: zero quaternion")
+
+
 def parse_transform(
     args: Sequence[object], extra: tuple[int, ...] = (0,)
 ) -> tuple[str, np.ndarray, np.ndarray]:
@@ -139,20 +157,9 @@ def parse_transform(
     ``extra`` lists how many numbers may follow the quaternion (Root/Pos v2.1 adds scale and offset).
     Raises :class:`VmcMessageError` for wrong counts or types, non-finite values or a zero quaternion.
     """
-    if len(args) - 8 not in extra:
-        raise VmcMessageError(f"expected {[8 + e for e in extra]} arguments, got {len(args)}")
-    name, *numbers = args
-    if not isinstance(name, str) or not name:
-        raise VmcMessageError(f"first argument must be a bone name, got {name!r}")
-    if not all(_is_number(x) for x in numbers):
-        raise VmcMessageError(f"{name}: non-numeric values {numbers!r}")
-    values = np.asarray(numbers, dtype=np.float64)
-    if not np.isfinite(values).all():
-        raise VmcMessageError(f"{name}: non-finite values")
-    norm = np.linalg.norm(values[3:7])
-    if norm < 1e-6:
-        raise VmcMessageError(f"{name}: zero quaternion")
-    return name, values[:3], values[3:7] / norm
+    _check_transform(args, extra)
+    values = np.asarray(args[1:8], dtype=np.float64)
+    return args[0], values[:3], values[3:] / np.linalg.norm(values[3:])
 
 
 def _root_extension(args: Sequence[object]) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -288,14 +295,14 @@ class VmcFrameAssembler:
     def _key(self, address: str, args: Sequence[object]) -> tuple[str, ...] | None:
         """The message's key in the sender's pattern (None: no key); validates its arguments."""
         if address == BONE_ADDRESS:
-            name, _, _ = parse_transform(args)
-            return ("bone", name) if name in HUMAN_BONES else None
+            _check_transform(args, (0,))
+            return ("bone", args[0]) if args[0] in HUMAN_BONES else None
         if address == ROOT_ADDRESS:
-            parse_transform(args, extra=(0, 6))
+            _check_transform(args, (0, 6))
             _root_extension(args)
             return ("root",)
         if address == TIME_ADDRESS:
-            if len(args) != 1 or not _is_number(args[0]) or not np.isfinite(args[0]):
+            if len(args) != 1 or not _is_number(args[0]) or not math.isfinite(args[0]):
                 raise VmcMessageError(f"{TIME_ADDRESS} takes one number, got {list(args)!r}")
             return ("time",)
         if address == OK_ADDRESS:
@@ -307,7 +314,7 @@ class VmcFrameAssembler:
             return ("apply",)
         if address == BLEND_ADDRESS:
             if len(args) != 2 or not isinstance(args[0], str) or not _is_number(args[1]) \
-                    or not np.isfinite(args[1]):
+                    or not math.isfinite(args[1]):
                 raise VmcMessageError(f"{BLEND_ADDRESS} takes a name and a number, got {list(args)!r}")
         return None
 
@@ -570,7 +577,8 @@ class VmcReceiver:
     python-osc's Dispatcher is not used: it drops packets it cannot parse without a word and hides
     bundle boundaries, both of which this needs. On Linux the kernel's count of datagrams it dropped
     for want of buffer space is read with every datagram (``SO_RXQ_OVFL``) and reported as
-    ``kernel_dropped`` in :attr:`counts`.
+    ``kernel_dropped`` in :attr:`counts`; ``backlog_max`` is the most datagrams that waited in the
+    queue (the parsing thread behind the reader).
     """
 
     def __init__(self, on_frame: Callable[[VmcFrame], None], host: str = DEFAULT_HOST,
@@ -595,6 +603,7 @@ class VmcReceiver:
         self._stop = threading.Event()
         self._datagrams = 0
         self._kernel_dropped = 0
+        self._backlog = 0  # the most datagrams read but not yet parsed
         self._reader = threading.Thread(target=self._read, name="vmc-reader", daemon=True)
         self._worker = threading.Thread(target=self._work, name="vmc-frames", daemon=True)
 
@@ -606,7 +615,8 @@ class VmcReceiver:
     def counts(self) -> dict[str, int]:
         with self._lock:
             counts = dict(self.assembler.counts)
-        counts.update(datagrams=self._datagrams, kernel_dropped=self._kernel_dropped)
+        counts.update(datagrams=self._datagrams, kernel_dropped=self._kernel_dropped,
+                      backlog_max=self._backlog)
         return counts
 
     def start(self) -> VmcReceiver:
@@ -632,6 +642,7 @@ class VmcReceiver:
 
     def _work(self) -> None:
         while (data := self._queue.get()) is not None:
+            self._backlog = max(self._backlog, self._queue.qsize())
             with self._lock:
                 frames = self.assembler.feed_datagram(data)
             for f in frames:

@@ -70,6 +70,7 @@ class VmcBridge(PlayerNode):
         self._lock = threading.Lock()
         self._counts = dict.fromkeys(("conversion_errors", "sent", "not_sent"), 0)
         self._last_bad = 0
+        self._lag_max = 0.0  # ms: the most a frame's stamp lay before its publication
         self._start_ns = time.time_ns()  # /VMC/Ext/T goes out as seconds since this
         self._delay_ns = max(0, round(self.latency * 1e9))
         self._output = output_topic
@@ -107,6 +108,9 @@ class VmcBridge(PlayerNode):
             return
         if out is None:  # the sender says the pose is not the performer's (OK state): counted
             return
+        lag_ms = (self.get_clock().now().nanoseconds - stamp.nanoseconds) * 1e-6
+        with self._lock:
+            self._lag_max = max(self._lag_max, lag_ms)
         stamp_msg = stamp.to_msg()
         self._publisher.publish(joint_state(out[0], out[1], stamp_msg, self.frame_id))
         if frame.blendshapes:
@@ -144,7 +148,8 @@ class VmcBridge(PlayerNode):
             counts.update(self._counts)
         counts.update(self.link.counts)
         counts.update(receive_buffer_bytes=self.receiver.buffer_bytes,
-                      stylizer_latency_ms=f"{self._delay_ns * 1e-6:.3f}")
+                      stylizer_latency_ms=f"{self._delay_ns * 1e-6:.3f}",
+                      stamp_lag_max_ms=f"{self._lag_max:.1f}")
         bad = sum(counts.get(k, 0) for k in BAD)
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if bad > self._last_bad else DiagnosticStatus.OK,
