@@ -596,3 +596,18 @@ def test_a_finger_changed_on_its_way_back_goes_out_as_it_came_back(sent):
     for b in vmc.EXTRA_BONES:  # the others bit for bit
         if b != "LeftIndexProximal":
             assert out.raw[b].dgram == frame.raw[b].dgram
+
+
+def test_bone_messages_and_bundles_are_encoded_as_python_osc_encodes_them():
+    from pythonosc import osc_bundle_builder, osc_packet
+
+    p, q = np.array([0.1, -0.25, 3.0]), np.array([0.0, 0.6, 0.0, 0.8])
+    for name in ("Hips", "LeftThumbIntermediate", "Neck"):  # names padded to 4 bytes differently
+        assert vmc._bone_message(name, p, q).dgram == vmc.build_message(
+            vmc.BONE_ADDRESS, [name, *map(float, p), *map(float, q)]).dgram
+    messages = [vmc._bone_message("Hips", p, q), vmc.build_message(vmc.TIME_ADDRESS, [1.5])]
+    builder = osc_bundle_builder.OscBundleBuilder(osc_bundle_builder.IMMEDIATELY)
+    for m in messages:
+        builder.add_content(vmc.build_message(*(lambda x: (x.address, x.params))(
+            osc_packet.OscPacket(m.dgram).messages[0].message)))
+    assert vmc._bundle(messages).dgram == builder.build().dgram

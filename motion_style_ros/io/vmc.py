@@ -36,7 +36,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from pythonosc import osc_bundle, osc_bundle_builder, osc_message, osc_message_builder, osc_packet
+from pythonosc import osc_bundle, osc_message, osc_message_builder, osc_packet
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion
@@ -519,24 +519,48 @@ class VmcEncoder:
 
 
 
-def _bundle(messages: Sequence[osc_message.OscMessage]) -> osc_bundle.OscBundle:
-    bundle = osc_bundle_builder.OscBundleBuilder(osc_bundle_builder.IMMEDIATELY)
-    for m in messages:
-        bundle.add_content(m)
-    return bundle.build()
+@dataclass(frozen=True)
+class Packet:
+    """An OSC packet ready to send: its datagram (``dgram``), as python-osc's packets have one."""
+
+    dgram: bytes
+
+
+_IMMEDIATELY = struct.pack(">Q", 1)  # the OSC time tag "now"
+
+
+def _bundle(messages: Sequence[osc_message.OscMessage | Packet]) -> Packet:
+    """One bundle of ``messages`` (their datagrams as they are: python-osc's builder would parse
+    every message it has just written again, which doubled the cost of a frame)."""
+    return Packet(b"#bundle\x00" + _IMMEDIATELY + b"".join(
+        struct.pack(">i", len(m.dgram)) + m.dgram for m in messages))
+
+
+def _osc_string(text: str) -> bytes:
+    data = text.encode("utf-8") + b"\x00"
+    return data + b"\x00" * (-len(data) % 4)
+
+
+_BONE_HEAD = _osc_string(BONE_ADDRESS) + _osc_string(",sfffffff")
+
+
+def _bone_message(name: str, p: np.ndarray, q: np.ndarray) -> Packet:
+    """A /VMC/Ext/Bone/Pos message, encoded as python-osc's builder encodes it (float32 big-endian
+    arguments), at a fraction of its cost: a frame sends one for every bone."""
+    return Packet(_BONE_HEAD + _osc_string(name) + struct.pack(">7f", *p, *q))
 
 
 def _transform_args(name: str, p: np.ndarray, q: np.ndarray) -> list[object]:
     return [name, *map(float, p), *map(float, q)]
 
 
-def frame_bundle(frame: VmcFrame, time: float) -> osc_bundle.OscBundle:
+def frame_bundle(frame: VmcFrame, time: float) -> Packet:
     """One VMC frame as an OSC bundle: root, bones, blendshapes, OK and time (as performers send it)."""
     root = _transform_args("root", *frame.root)
     if frame.root_scale is not None:
         root += [*map(float, frame.root_scale), *map(float, frame.root_offset)]
     messages = [build_message(ROOT_ADDRESS, root)]
-    messages += [build_message(BONE_ADDRESS, _transform_args(b, p, q)) for b, (p, q) in frame.bones.items()]
+    messages += [_bone_message(b, p, q) for b, (p, q) in frame.bones.items()]
     messages += [build_message(BLEND_ADDRESS, [k, float(v)]) for k, v in frame.blendshapes.items()]
     if frame.apply or frame.blendshapes:
         messages.append(build_message(APPLY_ADDRESS, []))
@@ -555,7 +579,7 @@ class VmcSender:
     def send(self, frame: VmcFrame, time: float) -> None:
         self.send_packet(frame_bundle(frame, time))
 
-    def send_packet(self, packet: osc_bundle.OscBundle | osc_message.OscMessage) -> None:
+    def send_packet(self, packet: Packet | osc_bundle.OscBundle | osc_message.OscMessage) -> None:
         try:
             self._socket.sendto(packet.dgram, self._address)
         except ConnectionRefusedError:  # an ICMP "port unreachable" from an earlier datagram
@@ -853,7 +877,7 @@ class VmcLink:
             return min(self._received, key=lambda r: abs(r.stamp_ns - stamp_ns))
 
     def send(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int,
-             delay_ns: int, time: float) -> osc_bundle.OscBundle:
+             delay_ns: int, time: float) -> Packet:
         """The VMC bundle for one stylized JointState stamped ``stamp_ns`` whose pose shows the
         input of ``stamp_ns - delay_ns``. Raises MotionStyleError for names or values the layout
         cannot decode."""
@@ -871,7 +895,7 @@ class VmcLink:
         return self._bundle(shown, rotations, root, time, extras)
 
     def _bundle(self, shown: _Received, rotations: np.ndarray, root: np.ndarray, time: float,
-                extras: dict[str, np.ndarray] | None = None) -> osc_bundle.OscBundle:
+                extras: dict[str, np.ndarray] | None = None) -> Packet:
         """``extras``: pass-through bones' JointState values as they came back; one that differs
         from what was published for the frame (a node changed it on the way) is sent as it came
         back, the others as the sender sent them."""
@@ -901,18 +925,16 @@ class VmcLink:
         hips_p = core_to_unity_position(rot.rotate(rot.conjugate(root_q), pelvis - root_p))
         messages = [frame.raw.get("root") or build_message(ROOT_ADDRESS, _transform_args("root", *frame.root))]
         for j, b in enumerate(rig.names):
-            p = hips_p if j == 0 else frame.bones[b][0]
-            messages.append(build_message(BONE_ADDRESS, _transform_args(b, p, local_q[j])))
+            messages.append(_bone_message(b, hips_p if j == 0 else frame.bones[b][0], local_q[j]))
         for b in EXTRA_BONES:
             if b not in frame.bones:
                 continue
             back = (extras or {}).get(b)
             if back is not None and not np.array_equal(back, shown.extras[b]) and np.isfinite(back).all():
                 q = core_to_unity_rotation(rotations_from_values(back)[0])
-                messages.append(build_message(BONE_ADDRESS, _transform_args(b, frame.bones[b][0], q)))
+                messages.append(_bone_message(b, frame.bones[b][0], q))
             else:
-                messages.append(frame.raw.get(b) or build_message(BONE_ADDRESS,
-                                                                  _transform_args(b, *frame.bones[b])))
+                messages.append(frame.raw.get(b) or _bone_message(b, *frame.bones[b]))
         if frame.passthrough:
             messages += list(frame.passthrough)
         else:  # a frame made, not received
