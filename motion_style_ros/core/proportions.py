@@ -11,8 +11,8 @@ performer's scale times the rate at which the canonical leg carries the ankle re
 pelvis, ``v_root = -s * d/dt(ankle - pelvis)``. The scale is the least-squares ``s`` over such
 frames (the stance foot is the one that moves least at the current estimate), with a prior of 1
 worth :data:`PRIOR_WEIGHT` so that a stream with no steps in it keeps the canonical size.
-:class:`StreamScale` maps the stream into canonical proportions (root displacements and height
-divided by ``s``) and the stylized output back (multiplied by ``s``), so the output keeps the
+:class:`StreamScale` maps the stream into canonical proportions (root displacements divided by
+``s``) and the stylized output back (multiplied by ``s``), so the output keeps the
 performer's own proportions.
 """
 
@@ -22,7 +22,7 @@ import numpy as np
 
 from motion_style_ros.core.motion import Motion
 
-PRIOR_WEIGHT = 2.0  # (m/s)^2 frames: a few steps outweigh it
+PRIOR_WEIGHT = 0.5  # (m/s)^2 frames: a few steps outweigh it
 MIN_LEG_SPEED = 0.1  # m/s: slower relative ankle motion says little about the scale
 SCALE_RANGE = (0.5, 2.0)
 # A frame counts when its stance ankle moves, at the current estimate, slower than this fraction
@@ -31,6 +31,8 @@ STANCE_RESIDUAL = 0.35
 # The points that rest on the floor in a stance: the ankle from heel strike, the toes at push-off
 # (the ankle then rolls forward over them).
 CONTACTS = ("Foot_L", "Foot_R", "Toes_L", "Toes_R")
+RESTART_EVIDENCE = 4.0  # (m/s)^2 frames of stance leg motion: about a step
+RESTART_OFF = 0.08  # a first estimate this far from the canonical size is applied at once
 
 
 def _stance_sums(root_velocity: np.ndarray, leg_velocity: np.ndarray, scale: np.ndarray
@@ -82,11 +84,11 @@ class StreamScale:
     stream's world and canonical proportions.
 
     The map of root positions is kept continuous while the estimate moves (eased with time
-    constant ``ease_seconds``): the stream's horizontal root displacements are divided by the
-    scale and added up from where the last frame left them. Heights pass as they are: a shorter
-    performer's lower pelvis puts the canonical feet below the floor, which the session's
-    grounding (:class:`~motion_style_ros.core.conform.StreamGround`) takes up as it does another
-    rig's ankle height, and adds back to the output. :meth:`to_canonical` maps a frame's root in,
+    constant ``ease_seconds``): the stream's root displacements are divided by the scale and added
+    up from where its first frame was, so a shorter performer's pelvis stays lower by as much as
+    it starts: that puts the canonical feet below the floor, which the session's grounding
+    (:class:`~motion_style_ros.core.conform.StreamGround`) takes up as it does another rig's ankle
+    height, and adds back to the output. :meth:`to_canonical` maps a frame's root in,
     :meth:`observe` learns from it, :meth:`to_stream` maps stylized root positions back out. The
     scale is the rig's: it holds across gaps until :meth:`clear`; :meth:`calibrate` sets it from a
     whole clip.
@@ -102,6 +104,7 @@ class StreamScale:
         self._cross = np.zeros(performers)
         self._square = np.zeros(performers)
         self.frozen = np.zeros(performers, dtype=bool)
+        self._measured = np.zeros(performers, dtype=bool)  # a first estimate has been applied
         self._stream = np.full((performers, 3), np.nan)  # last frame's root, stream world
         self._canonical = np.zeros((performers, 3))  # and where it went, canonical proportions
         self._relative = np.full((performers, len(CONTACTS), 2), np.nan)  # last contacts - pelvis
@@ -112,7 +115,7 @@ class StreamScale:
         for a, value in ((self.scale, 1.0), (self.target, 1.0), (self._cross, 0.0),
                          (self._square, 0.0), (self._relative, np.nan)):
             a[which] = value
-        self.frozen[which] = False
+        self.frozen[which] = self._measured[which] = False
 
     def calibrate(self, performer: int, scale: float) -> None:
         """Fix one performer's scale (a whole clip's, :func:`clip_scale`)."""
@@ -128,15 +131,17 @@ class StreamScale:
         """A frame's stream roots ``(P, 3)`` in canonical proportions."""
         first = np.isnan(self._stream[:, 0])
         self._step = root - self._stream
-        out = np.where(first[:, None], root / self.scale[:, None],
-                       self._canonical + self._step / self.scale[:, None])
-        out[:, 1] = root[:, 1]
+        out = np.where(first[:, None], root, self._canonical + self._step / self.scale[:, None])
         self._stream, self._canonical = root.copy(), out.copy()
         return out
 
-    def observe(self, relative_ankles: np.ndarray) -> None:
-        """Learn from the frame just mapped: its :data:`CONTACTS` relative to the pelvis ``(P, K, 3)`` on the
-        canonical skeleton (the rotations alone give them); then ease the applied scale on."""
+    def observe(self, relative_ankles: np.ndarray) -> np.ndarray:
+        """Learn from the frame just mapped: its :data:`CONTACTS` relative to the pelvis
+        ``(P, K, 3)`` on the canonical skeleton (the rotations alone give them); then ease the
+        applied scale on. Returns the performers whose size has just been measured, off the
+        canonical one by :data:`RESTART_OFF` or more after :data:`RESTART_EVIDENCE` of leg motion:
+        the estimate is applied at once, and a stylizer with a memory can forget the frames
+        before (as for the arm rolls)."""
         rel = relative_ankles[..., [0, 2]]
         have = ~np.isnan(self._relative[:, 0, 0]) & ~np.isnan(self._step[:, 0]) & ~self.frozen
         if have.any():
@@ -148,10 +153,14 @@ class StreamScale:
             estimate = _estimate(self._cross, self._square, self.reference)
             self.target = np.where(self.frozen, self.target, estimate)
         self._relative = rel.copy()
-        self.scale = np.where(self.frozen, self.scale, self.scale + self._gain * (self.target - self.scale))
+        measured = (~self.frozen & ~self._measured & (self._square >= RESTART_EVIDENCE)
+                    & (np.abs(self.target - self.scale) >= RESTART_OFF))
+        self._measured |= ~self.frozen & (self._square >= RESTART_EVIDENCE)
+        gain = np.where(measured, 1.0, self._gain)
+        self.scale = np.where(self.frozen, self.scale, self.scale + gain * (self.target - self.scale))
+        return measured
 
     def to_stream(self, positions: np.ndarray) -> np.ndarray:
         """Stylized root positions ``(P, 3)`` (canonical proportions) in the stream's world."""
         out = self._stream + self.scale[:, None] * (positions - self._canonical)
-        out[:, 1] = positions[:, 1]
         return np.where(np.isnan(self._stream[:, :1]), positions, out)

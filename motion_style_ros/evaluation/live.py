@@ -120,7 +120,8 @@ def proportions(make_session, clips: list[Motion], styles: list[str], judge,
                 scales: tuple[float, ...] = SCALES, progress: bool = True) -> dict:
     """Each clip streamed as performers of ``scales`` (and 1) send it, into every style: the style
     judge's accuracy (on the output brought back to canonical size) and the median foot skating on
-    the performer's own skeleton, divided by the scale (m/s at canonical size)."""
+    the performer's own skeleton, divided by the scale (m/s at canonical size), over the whole
+    stream and after its first second (clips of at least two seconds)."""
     from tqdm import tqdm
 
     rows = {}
@@ -135,14 +136,20 @@ def proportions(make_session, clips: list[Motion], styles: list[str], judge,
         canonical_size = Motion.from_rotations(out.skeleton, out.rotations, out.root_positions / scale,
                                                out.fps)
         recognised = judge.judge([canonical_size]).labels[0] == style
-        skating = metrics.foot_skating(on_performer(out, scale)) / scale
-        results[scale].append((recognised, skating))
+        performer = on_performer(out, scale)
+        settled = performer[int(round(SETTLE_SECONDS * clip.fps)):]
+        skating = metrics.foot_skating(performer) / scale
+        late = metrics.foot_skating(settled) / scale if settled.n_frames >= clip.fps else float("nan")
+        results[scale].append((recognised, skating, late))
     for scale, values in results.items():
-        recognised, skating = zip(*values)
+        recognised, skating, late = zip(*values)
         rows[f"{scale:g}"] = {"outputs": len(values), "style_accuracy": float(np.mean(recognised)),
-                              "foot_skating_median": float(np.nanmedian(skating))}
+                              "foot_skating_median": float(np.nanmedian(skating)),
+                              "foot_skating_median_after_1s": float(np.nanmedian(late))}
     base = rows["1"]
     for row in rows.values():
         row["style_accuracy_points_vs_1"] = 100.0 * (row["style_accuracy"] - base["style_accuracy"])
         row["foot_skating_vs_1"] = row["foot_skating_median"] / base["foot_skating_median"]
+        row["foot_skating_after_1s_vs_1"] = (row["foot_skating_median_after_1s"]
+                                             / base["foot_skating_median_after_1s"])
     return rows

@@ -317,8 +317,9 @@ class RecurrentSession:
             self._ground.update(self._encoder.positions[:, self._ankle_joints] + lift[:, None])
         if self._rolls is not None:
             positions = self._encoder.positions
-            self._remeasured = self._rolls.observe(q, positions)
-            self._scale.observe(positions[:, self._contacts] - positions[:, self.skeleton.pelvis, None])
+            rolled = self._rolls.observe(q, positions)
+            sized = self._scale.observe(positions[:, self._contacts] - positions[:, self.skeleton.pelvis, None])
+            self._remeasured = rolled | sized
         return features, lift
 
     def _emit(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
