@@ -70,7 +70,7 @@ def run(args: argparse.Namespace, backend: str) -> int:
     from motion_style_ros.evaluation import live
     from motion_style_ros.evaluation.judges import Judge
     from motion_style_ros.io.joint_state import JointStateLayout
-    from motion_style_ros.runtime.offline import canonical_clip, node_settings, stylizer
+    from motion_style_ros.runtime.offline import canonical_clip, default_model, node_settings, stylizer
 
     styles = args.live_styles.split(",")
     out = Path(args.out)
@@ -86,13 +86,16 @@ def run(args: argparse.Namespace, backend: str) -> int:
     layout = JointStateLayout.canonical()
     sk = canonical()
     rows = []
+    delays: dict[float, int] = {}
     with LiveGraph("motion_style_eval_live", out / "logs") as graph:
         for path in paths:
             source = live.live_input(path)
             inputs, outputs = stream_clip(graph, path, styles, backend, source.fps)
             index = {stamp: k for k, stamp in enumerate(inputs)}
             reference = canonical_clip(str(path))[live.start_frame(path):]
-            delay = _delay(backend, source.fps)
+            if source.fps not in delays:
+                delays[source.fps] = _delay(backend, source.fps)
+            delay = delays[source.fps]
             for style in styles:
                 frames = sorted((index[s], v) for s, v in outputs[style].items() if s in index)
                 row = {"clip": path.name, "style": style, "frames_in": source.n_frames,
@@ -123,7 +126,7 @@ def run(args: argparse.Namespace, backend: str) -> int:
         Session = WindowedSession if backend == "stgcn" else RecurrentSession
         clips = [live.live_input(p) for p in paths]
         report["proportions"] = live.proportions(
-            lambda fps: Session(args.model or _default(backend), input_fps=fps, threads=args.threads,
+            lambda fps: Session(args.model or default_model(backend), input_fps=fps, threads=args.threads,
                                 **settings),
             clips, Judge("style").labels, Judge("style", args.threads), progress=not args.quiet)
         for scale, row in report["proportions"].items():
@@ -136,20 +139,14 @@ def run(args: argparse.Namespace, backend: str) -> int:
     return 0
 
 
-def _default(backend: str) -> str:
-    from motion_style_ros.runtime.offline import default_model
-
-    return default_model(backend)
-
-
 def _delay(backend: str, fps: float) -> int:
     """Input frames by which the node's output trails the offline output of the same clip."""
     if backend != "stgcn":
         return 0  # both go through step() with the same latency
-    from motion_style_ros.runtime.offline import node_settings
+    from motion_style_ros.runtime.offline import default_model, node_settings
     from motion_style_ros.runtime.windowed import WindowedSession
 
-    session = WindowedSession(_default(backend), input_fps=fps, **node_settings(backend))
+    session = WindowedSession(default_model(backend), input_fps=fps, **node_settings(backend))
     return int(round(session.latency * fps))
 
 

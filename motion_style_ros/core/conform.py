@@ -308,8 +308,9 @@ class StreamRolls:
         self.frozen[performer] = True
 
     def conform(self, rotations: np.ndarray) -> np.ndarray:
-        """A frame's rotations ``(P, J, 4)`` with each performer's rolls as they stand."""
-        return apply_rolls(rotations, self.joints, self.angles)
+        """A frame's rotations ``(P, J, 4)`` with each performer's rolls as they stand (as they
+        are, for a rig that needs none: the per-frame path costs nothing then)."""
+        return apply_rolls(rotations, self.joints, self.angles) if self.angles.any() else rotations
 
     def observe(self, rotations: np.ndarray, positions: np.ndarray) -> np.ndarray:
         """Add one model frame ``(P, J, 4)`` (the stream's own rotations) with its global joint
@@ -327,9 +328,12 @@ class StreamRolls:
             total[live] += add
         self.frames[live] += 1
         n = self.frames
-        # every frame until the rig is measured, then every solve_seconds, every second after
+        # every frame while the first few hanging-arm frames come in (until the rig is measured),
+        # then every solve_seconds, every second after
         early = n <= self._settle
-        due = live & ((np.where(early, n % self._every, n % self._late) == 0) | (early & ~self._restarted))
+        few = self._count[:, ::len(CHAINS[0])].min(axis=1) <= ROLL_SURE_FRAMES
+        first = early & ~self._restarted & few
+        due = live & ((np.where(early, n % self._every, n % self._late) == 0) | first)
         if due.any():
             self.target[due] = self.model.solve(self._second[due], self._first[due], self._count[due])
         turn = np.angle(np.exp(1j * (self.target - self.angles)))  # the short way round
@@ -346,7 +350,7 @@ class StreamRolls:
 
     def undo(self, rotations: np.ndarray) -> np.ndarray:
         """Conformed rotations ``(P, J, 4)`` turned back to each stream's own joint frames."""
-        return apply_rolls(rotations, self.joints, self.angles, undo=True)
+        return apply_rolls(rotations, self.joints, self.angles, undo=True) if self.angles.any() else rotations
 
 
 class StreamGround:

@@ -65,11 +65,10 @@ def stance_sums(motion: Motion, reference: float = 1.0, passes: int = 3) -> tupl
     points = [motion.skeleton.index(n) for n in CONTACTS]
     root_v = np.diff(g[:, pelvis, [0, 2]], axis=0) * motion.fps
     leg_v = np.diff(g[:, points][..., [0, 2]] - g[:, pelvis, None][..., [0, 2]], axis=0) * motion.fps
-    scale = np.array([reference])
+    scale = reference
     for _ in range(passes):
-        cross, square = _stance_sums(root_v, leg_v, np.repeat(scale, len(root_v)))
-        scale = np.clip(np.array([(cross.sum() + PRIOR_WEIGHT * reference) / (square.sum() + PRIOR_WEIGHT)]),
-                        *SCALE_RANGE)
+        cross, square = _stance_sums(root_v, leg_v, np.full(len(root_v), scale))
+        scale = reference * float(_estimate(np.array([cross.sum()]), np.array([square.sum()]), reference)[0])
     return float(cross.sum()), float(square.sum())
 
 

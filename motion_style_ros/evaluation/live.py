@@ -26,7 +26,6 @@ from motion_style_ros.evaluation import metrics
 from motion_style_ros.io import bvh, datasets
 
 SETTLE_SECONDS = 1.0  # a stream's first second may be rough
-STYLES = ("elderly", "youthful", "normal")
 SCALES = (0.8, 1.2)
 
 

@@ -175,8 +175,8 @@ class RecurrentSession:
     def reset(self, performer: int | None = None, recalibrate: bool = False) -> None:
         """Start one performer or all afresh at their next frame: learned initial state, the
         stylized root snapped back to the input's, controls at their targets; with
-        ``recalibrate``, the stream's conditioning (arm rolls) is estimated again too (a new rig:
-        the rolls otherwise hold across resets and gaps)."""
+        ``recalibrate``, the stream's conditioning (arm rolls, size) is measured again too (a new
+        rig: it otherwise holds across resets and gaps)."""
         self.catch_up()
         which = self._controls.which(performer)
         if recalibrate and self._rolls is not None:
