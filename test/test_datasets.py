@@ -60,6 +60,10 @@ def test_bandai_index_counts(bandai):
     assert {i.style for i in by_set["bandai-2"]} == D2_STYLES
     assert {i.content for i in by_set["bandai-2"]} == D2_CONTENTS
     assert len({i.style for i in by_set["bandai-1"]}) == 15
+    # Dataset-1 styles never merge into dataset-2's: the names both sets use get a suffix.
+    assert {i.style for i in by_set["bandai-1"]} & D2_STYLES == set()
+    assert {"active-d1", "feminine-d1", "normal-d1", "proud", "tired"} <= {i.style for i in by_set["bandai-1"]}
+    assert all(i.name.split("_")[2] == i.style.removesuffix("-d1") for i in bandai)
     assert len({i.name for i in bandai}) == len(bandai)
     assert all(i.path.is_file() and i.path.stem == i.name for i in bandai)
 
@@ -83,8 +87,10 @@ def test_bandai_labels_agree_with_json_and_labels_csv(bandai, datasets):
                          for f in ("content_label.txt", "style_label.txt")]
         label = json.loads(info.path.with_suffix(".json").read_text())
         contents, styles = cfg[base]
-        assert (contents[label["content"]], styles[label["style"]]) == (info.content, info.style)
-        assert listed.pop(info.name) == (info.content, info.style, info.take)
+        style = ds.style_label(info.dataset, styles[label["style"]])
+        assert (contents[label["content"]], style) == (info.content, info.style)
+        content, named, take = listed.pop(info.name)
+        assert (content, ds.style_label(info.dataset, named), take) == (info.content, info.style, info.take)
     assert not listed  # labels.csv lists no clip the index missed
 
 

@@ -93,3 +93,12 @@ def test_make_continuous_removes_sign_flips():
 def test_yaw_is_about_up_axis():
     q = rot.from_yaw(np.array(np.pi / 2))
     assert np.allclose(rot.rotate(q, np.array([0.0, 0.0, 1.0])), [1.0, 0.0, 0.0], atol=1e-12)
+
+
+def test_log_and_exp_match_scipy_rotation_vectors_and_invert_each_other():
+    q = random_quats(200)
+    v = rot.log(q)
+    np.testing.assert_allclose(v, scipy_of(q).as_rotvec(), atol=1e-9)
+    assert np.abs(rot.angle_between(rot.exp(v), q)).max() < 1e-9
+    tiny = np.array([[1e-12, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    np.testing.assert_allclose(rot.log(rot.exp(tiny)), tiny, atol=1e-15)

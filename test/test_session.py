@@ -221,8 +221,13 @@ def test_120_hz_input_gives_120_hz_output(model, clips):
     # model frame k, and the frames in between interpolate.
     assert np.abs(p120[3::4] - p30[: len(p120[3::4])]).max() < 1e-5
     assert np.abs(rot.angle_between(q120[3::4], q30[: len(q120[3::4])])).max() < 1e-4
-    quarter = p120[4::4]  # a quarter of the way from model frame k to k + 1
-    assert np.abs(quarter - (0.75 * p30[:-1] + 0.25 * p30[1:])[: len(quarter)]).max() < 1e-5
+    # In between: the cubic Hermite segment from model frame k to k + 1, its tangents the
+    # backward differences (core.resample.hermite).
+    quarter = p120[8::4]  # a quarter of the way from model frame k to k + 1 (k >= 1)
+    h = (27 / 32, 9 / 64, 5 / 32, -3 / 64)  # Hermite weights of x0, m0, x1, m1 at s = 1/4
+    k0, k1, kp = p30[1:-1], p30[2:], p30[:-2]
+    expected = h[0] * k0 + h[1] * (k0 - kp) + h[2] * k1 + h[3] * (k1 - k0)
+    assert np.abs(quarter - expected[: len(quarter)]).max() < 1e-5
     g = type(walk).from_rotations(walk.skeleton, q120[:, 0], p120[:, 0], 120.0).global_positions()
     assert largest_jump(g) < 0.5 * largest_jump(
         type(walk).from_rotations(walk.skeleton, q30[:, 0], p30[:, 0], 30.0).global_positions())

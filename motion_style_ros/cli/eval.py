@@ -14,7 +14,7 @@ def _stylizers():
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "eval", help="score a stylizer and the baselines on held-out takes",
-        description="Restyle Bandai dataset-2 test takes into every other style and score the "
+        description="Restyle Bandai test takes (dataset 2 unless --dataset 1) into every other style and score the "
                     "outputs with the shipped style and content judges and motion metrics (style "
                     "and content accuracy, FMD, content consistency, foot skating, jerk, bone "
                     "lengths), always beside the identity and oracle baselines. Writes "
@@ -30,6 +30,10 @@ def add_parser(subparsers):
                    help="test takes per (content, style) cell, each paired with every other "
                         "style (default: 2)")
     p.add_argument("--seed", type=int, default=0, help="seed of the take choice (default: 0)")
+    p.add_argument("--dataset", type=int, choices=(1, 2), default=2,
+                   help="the Bandai set whose test takes are restyled into its own other styles "
+                        "(default: 2; 1: its 18 held-out takes into its 15 styles; --record "
+                        "writes it as eval_dataset1)")
     p.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--record", action="store_true",
@@ -92,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
     if args.controls:
         return run_controls(args)
     judges = Judge("style", args.threads), Judge("content", args.threads)
-    clips = harness.held_out_clips(progress=not args.quiet)
+    second = Judge("style", args.threads, panel=2), Judge("content", args.threads, panel=2)
+    clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)
     if args.reference_codes:
         from motion_style_ros.evaluation.windowed import DEFAULT_MODEL, ReferenceStylizer
 
@@ -101,9 +106,10 @@ def run(args: argparse.Namespace) -> int:
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
     stylizers.update(harness.baselines(clips, args.seed))
     settings = {"pairs_per_cell": args.pairs_per_cell, "seed": args.seed, "alpha": args.alpha,
+                "dataset": args.dataset,
                 **({} if args.seed_spread is None else {"seed_spread": args.seed_spread})}
     report = harness.evaluate(stylizers, clips, pairs, *judges, progress=not args.quiet,
-                              settings=settings)
+                              settings=settings, second=second)
     model = names[0] if names else None
     json_path, png_path = harness.write(report, Path(args.out), model=model)
     print(harness.format_table(report, model=model))
@@ -111,8 +117,9 @@ def run(args: argparse.Namespace) -> int:
         summary = {name: {**system["overall"], "fmd_per_style": {
                        s: v["fmd"] for s, v in system["per_style"].items()}}
                    for name, system in report["systems"].items()}
-        key = ("eval_reference_codes" if args.reference_codes else "eval" if args.seed_spread is None
-               else f"eval_seed_spread_{args.seed_spread:g}")
+        key = ("eval_reference_codes" if args.reference_codes
+               else f"eval_seed_spread_{args.seed_spread:g}" if args.seed_spread is not None
+               else "eval" if args.dataset == 2 else f"eval_dataset{args.dataset}")
         _record(args, key,
                 {"settings": report["settings"], "systems": summary})
     for name, system in report["systems"].items():
@@ -132,15 +139,19 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
     from motion_style_ros.evaluation.judges import Judge
     from motion_style_ros.io.render import render_gif, render_png
 
+    from motion_style_ros.runtime.offline import default_model
+    from motion_style_ros.runtime.onnx_model import model_path, read_card
+
     if not stylizers:
         raise MotionStyleError("--unseen checks trained stylizers: name one with --stylizer")
-    styles = Judge("style").labels
+    judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
     clips = unseen.neutral_clips()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     reports = {}
     for name, stylize in stylizers.items():
-        reports[name] = unseen.evaluate(stylize, styles, clips, progress=not args.quiet)
+        styles = read_card(model_path(args.model or default_model(name)))["styles"]
+        reports[name] = unseen.evaluate(stylize, styles, clips, judges, progress=not args.quiet)
         print(f"{name}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in reports[name]["summary"].items()))
         # Pictures: the input beside two contrasting styles, for a walk of each studio.
         for title, source in (clips[0], clips[-1]):
@@ -151,7 +162,8 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
             render_gif(motions, titles, stem.with_suffix(".gif"), seconds=6.0)
             print(f"wrote {stem}.png and {stem}.gif")
     path = out / "unseen.json"
-    path.write_text(json.dumps({"settings": {"alpha": args.alpha, "styles": styles}, **reports},
+    path.write_text(json.dumps({"settings": {"alpha": args.alpha, "judges": [j.model.path.name for j in judges]},
+                                **reports},
                                indent=1) + "\n")
     print(f"wrote {path}")
     if args.record:

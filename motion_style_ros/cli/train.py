@@ -10,14 +10,18 @@ def add_parser(subparsers):
     targets = p.add_subparsers(dest="target", metavar="TARGET", required=True)
     judges = targets.add_parser(
         "judges", help="the style and content judges used by 'motion-style eval'",
-        description="Train the independent style and content classifiers on real Bandai "
-                    "dataset-2 train takes (selected on val, scored on test takes), export them "
-                    "to ONNX and write their model cards.",
+        description="Train the independent style and content classifiers on real Bandai train "
+                    "takes of both sets, export them to ONNX and write their model cards. Panel 1 "
+                    "(judge_<kind>, a CNN on positions, best val epoch) may guide training "
+                    "choices; panel 2 (judge2_<kind>, a GRU on rotations, last epoch) only reports.",
     )
     judges.add_argument("--kind", choices=("style", "content", "both"), default="both",
                         help="which judge to train (default: both)")
-    judges.add_argument("--epochs", type=int, default=15, help="training epochs (default: 15)")
-    judges.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    judges.add_argument("--panel", choices=("1", "2", "both"), default="both",
+                        help="which panel to train (default: both)")
+    judges.add_argument("--epochs", type=int, default=None,
+                        help="training epochs (default: the panel's, 15 and 8)")
+    judges.add_argument("--seed", type=int, default=None, help="random seed (default: the panel's, 0 and 1)")
     judges.add_argument("--threads", type=int, default=2,
                         help="torch CPU threads (default: 2)")
     judges.add_argument("--out", default=None,
@@ -99,18 +103,21 @@ def run_judges(args) -> int:
 
     judges = _training("judges")
 
-    if args.epochs < 1:
+    if args.epochs is not None and args.epochs < 1:
         raise MotionStyleError(f"--epochs must be at least 1, got {args.epochs}")
     out = Path(args.out) if args.out else models_dir()
+    changes = {k: v for k, v in (("epochs", args.epochs), ("seed", args.seed)) if v is not None}
     clips = judges.encode_clips()
-    for kind in judges.KINDS if args.kind == "both" else (args.kind,):
-        card = judges.train(judges.Config(kind=kind, epochs=args.epochs, seed=args.seed), out,
-                            clips, threads=args.threads)
-        acc = card["accuracy"]
-        print(f"judge_{kind}: test accuracy {acc['test_clip']:.3f} per clip "
-              f"({acc['test_clips']} clips), {acc['test_window']:.3f} per {acc['test_window_frames']}-frame "
-              f"window; val {acc['val_clip']:.3f}; {card['training']['wall_time_s']:.0f} s "
-              f"-> {out / card['name']}.onnx")
+    for panel in (1, 2) if args.panel == "both" else (int(args.panel),):
+        for kind in judges.KINDS if args.kind == "both" else (args.kind,):
+            cfg = (judges.Config(kind=kind, **changes) if panel == 1
+                   else judges.second_panel(kind, **changes))
+            card = judges.train(cfg, out, clips, threads=args.threads)
+            acc = card["accuracy"]
+            print(f"{card['name']}: test accuracy {acc['test_clip']:.3f} per clip "
+                  f"({acc['test_clips']} clips), {acc['test_window']:.3f} per "
+                  f"{acc['test_window_frames']}-frame window; {card['training']['wall_time_s']:.0f} s "
+                  f"-> {out / card['name']}.onnx")
     return 0
 
 

@@ -250,6 +250,25 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarray:
     return normalize(wa * a + wb * b)
 
 
+def log(q: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis times angle, radians) of the short arc; the inverse of :func:`exp`."""
+    q = normalize(q)
+    q = np.where(q[..., :1] < 0, -q, q)
+    s = norm(q[..., 1:], keepdims=True)
+    half = np.arctan2(s, q[..., :1])
+    # angle / sin(angle / 2), with its limit 2 near the identity
+    scale = np.where(s < 1e-9, 2.0, 2.0 * half / np.maximum(s, 1e-12))
+    return scale * q[..., 1:]
+
+
+def exp(v: np.ndarray) -> np.ndarray:
+    """Unit quaternion of a rotation vector ``(..., 3)`` (axis times angle)."""
+    angle = norm(v, keepdims=True)
+    # sin(angle / 2) / angle, with its limit 1/2 near zero
+    scale = np.where(angle < 1e-9, 0.5, np.sin(0.5 * angle) / np.maximum(angle, 1e-12))
+    return np.concatenate([np.cos(0.5 * angle), scale * v], axis=-1)
+
+
 def make_continuous(q: np.ndarray, axis: int = 0) -> np.ndarray:
     """Flip signs along ``axis`` (time) so consecutive quaternions lie in the same hemisphere."""
     q = np.moveaxis(np.array(q, copy=True), axis, 0)

@@ -36,8 +36,10 @@ Clip = tuple[ClipInfo, Motion]
 
 # Aggregated metrics, in report and table order.
 METRICS = {
-    "style_accuracy": "style accuracy",
-    "content_accuracy": "content accuracy",
+    "style_accuracy": "style accuracy (judge 1)",
+    "style_accuracy_2": "style accuracy (judge 2)",
+    "content_accuracy": "content accuracy (judge 1)",
+    "content_accuracy_2": "content accuracy (judge 2)",
     "fmd": "FMD (mean over styles)",
     "content_consistency": "content consistency CC",
     "foot_skating": "foot skating out (m/s)",
@@ -57,9 +59,10 @@ class Pair:
     target: str
 
 
-def held_out_clips(root: Path | None = None, progress: bool = True) -> list[Clip]:
-    """The held-out test takes of Bandai dataset-2, canonical skeleton, 30 fps."""
-    infos = [i for i in index_bandai(root, datasets=(2,)) if i.split == "test"]
+def held_out_clips(root: Path | None = None, progress: bool = True, dataset: int = 2) -> list[Clip]:
+    """The held-out test takes of one Bandai set (dataset-1's: its second walk takes, and the
+    second call, punch and slash takes in ``normal-d1``), canonical skeleton, 30 fps."""
+    infos = [i for i in index_bandai(root, datasets=(dataset,)) if i.split == "test"]
     return load_bandai(infos, progress=progress)
 
 
@@ -113,6 +116,8 @@ def baselines(clips: list[Clip], seed: int = 0) -> dict[str, Stylizer]:
 class _Scores:
     style: str
     content: str
+    style_2: str | None  # the second panel's (None without one)
+    content_2: str | None
     style_embedding: np.ndarray
     content_embedding: np.ndarray
     skating: float
@@ -124,8 +129,9 @@ class _Scorer:
     """Judges and measures motions, each distinct motion object once per run (baselines hand
     back the same test clips over and over)."""
 
-    def __init__(self, style_judge: Judge, content_judge: Judge) -> None:
-        self.style_judge, self.content_judge = style_judge, content_judge
+    def __init__(self, style_judge: Judge, content_judge: Judge,
+                 second: tuple[Judge, Judge] | None = None) -> None:
+        self.style_judge, self.content_judge, self.second = style_judge, content_judge, second
         self._done: dict[int, tuple[Motion, _Scores]] = {}
         self._skeleton = canonical()
 
@@ -136,8 +142,10 @@ class _Scorer:
         features = [self.style_judge.features(motion)]
         style = self.style_judge.judge_features(features)
         content = self.content_judge.judge_features(features)
+        second = [None, None] if self.second is None else [
+            j.judge_features(features).labels[0] for j in self.second]
         scores = _Scores(
-            style.labels[0], content.labels[0], style.embeddings[0], content.embeddings[0],
+            style.labels[0], content.labels[0], *second, style.embeddings[0], content.embeddings[0],
             metrics.foot_skating(motion), metrics.jerk(motion),
             metrics.bone_length_error(motion, self._skeleton),
         )
@@ -153,10 +161,12 @@ def evaluate(
     content_judge: Judge,
     progress: bool = True,
     settings: dict | None = None,
+    second: tuple[Judge, Judge] | None = None,
 ) -> dict:
     """Score every stylizer on every pair; the report as a JSON-ready dict (``settings`` are
-    recorded in it, e.g. how the pairs were drawn)."""
-    score = _Scorer(style_judge, content_judge)
+    recorded in it, e.g. how the pairs were drawn). ``second``: the second panel's style and
+    content judges, for the ``_2`` accuracies."""
+    score = _Scorer(style_judge, content_judge, second)
     by_name = {info.name: m for info, m in clips}
     real = [score(m) for _, m in tqdm(clips, desc="judging test clips", disable=not progress)]
     styles = sorted({info.style for info, _ in clips})
@@ -187,6 +197,9 @@ def evaluate(
                 "judged_content": out.content,
                 "style_accuracy": float(out.style == pair.target),
                 "content_accuracy": float(out.content == pair.source.content),
+                "style_accuracy_2": None if out.style_2 is None else float(out.style_2 == pair.target),
+                "content_accuracy_2": None if out.content_2 is None else float(
+                    out.content_2 == pair.source.content),
                 "content_consistency": metrics.content_consistency(
                     src.content_embedding, out.content_embedding
                 ),
@@ -204,7 +217,7 @@ def evaluate(
         systems[name] = {"overall": overall, "per_style": per_style, "skipped": skipped, "pairs": rows}
     return {
         "settings": {
-            "data": "Bandai Namco Research Motion Dataset 2, test takes",
+            "data": f"Bandai Namco Research Motion Dataset {'1' if clips and clips[0][0].dataset == 'bandai-1' else '2'}, test takes",
             "test_clips": len(clips),
             "pairs": len(pairs),
             "styles": styles,
@@ -214,7 +227,8 @@ def evaluate(
                              "that style; the oracle draws its outputs from the same takes",
             "judges": {
                 kind: {"file": j.model.path.name, "test_clip_accuracy": j.card["accuracy"]["test_clip"]}
-                for kind, j in (("style", style_judge), ("content", content_judge))
+                for kind, j in (("style", style_judge), ("content", content_judge),
+                                *((("style_2", second[0]), ("content_2", second[1])) if second else ()))
             },
             **(settings or {}),
         },

@@ -24,12 +24,22 @@ class Judgement:
     embeddings: np.ndarray  # (N, E)
 
 
-class Judge:
-    """A shipped judge (``kind`` "style" or "content") or any judge ONNX file with its card."""
+KINDS = ("style", "content")
 
-    def __init__(self, kind_or_path: str | Path, threads: int = 1) -> None:
+
+def judge_file(kind: str, panel: int = 1) -> str:
+    """The shipped judge of ``kind`` on ``panel`` 1 (may guide training choices) or 2 (reports only;
+    see :mod:`motion_style_ros.models.judge`)."""
+    return f"judge_{kind}.onnx" if panel == 1 else f"judge{panel}_{kind}.onnx"
+
+
+class Judge:
+    """A shipped judge (``kind`` "style" or "content", on ``panel`` 1 or 2) or any judge ONNX file
+    with its card."""
+
+    def __init__(self, kind_or_path: str | Path, threads: int = 1, panel: int = 1) -> None:
         name = str(kind_or_path)
-        path = model_path(f"judge_{name}.onnx" if name in ("style", "content") else name)
+        path = model_path(judge_file(name, panel) if name in KINDS else name)
         self.card = read_card(path)
         if self.card.get("feature_version") != FEATURE_VERSION:
             raise MotionStyleError(

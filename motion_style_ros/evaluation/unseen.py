@@ -1,8 +1,11 @@
 """Stylizers on recordings they never saw: CMU and Xia neutral clips, other rigs and studios.
 
-There is no ground truth for these, so the checks are the failure modes a live user would meet
-first: NaN, joints that flip (a local rotation that turns further in one frame than any human
-joint does), feet that start sliding (foot skating against the input's own), stretched bones.
+There is no ground truth for these, so the checks are whether the style arrives (both judge
+panels: is the target recognised, and is its probability higher than on the input) and the failure
+modes a live user would meet first: NaN, joints that flip (a local rotation that turns further in
+one frame than any human joint does), feet that start sliding (foot skating against the input's
+own), stretched bones, and jerk against the input's at each input rate (30, 60 and the clips' own
+120 Hz: the output between model frames must stay smooth).
 """
 
 from __future__ import annotations
@@ -16,9 +19,11 @@ from tqdm import tqdm
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.conform import ground
 from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.resample import resample
 from motion_style_ros.core.retarget import retarget
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.evaluation import metrics
+from motion_style_ros.evaluation.judges import Judge
 from motion_style_ros.io import datasets
 
 Stylizer = Callable[[Motion, str], Motion]
@@ -67,13 +72,45 @@ def check(source: Motion, output: Motion) -> dict:
     }
 
 
+def _recognition(judges: list[Judge], source: Motion, output: Motion, style: str) -> dict:
+    """Per judge panel: the judged style of ``output``, whether it is the target, and how much the
+    target's probability rose from the ``source``'s."""
+    row = {}
+    for k, judge in enumerate(judges, start=1):
+        if style not in judge.labels:
+            continue
+        column = judge.labels.index(style)
+        result = judge.judge([source, output])
+        row[f"judged_style_{k}"] = result.labels[1]
+        row[f"recognised_{k}"] = result.labels[1] == style
+        row[f"target_gain_{k}"] = float(result.probabilities[1, column] - result.probabilities[0, column])
+    return row
+
+
 def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion]],
-             progress: bool = True) -> dict:
-    """Every clip into every style; per-output rows and a summary."""
-    rows = []
+             judges: list[Judge] | None = None, rates: tuple[float, ...] = (30.0, 60.0),
+             rate_styles: int = 3, progress: bool = True) -> dict:
+    """Every clip into every style (at the clips' own rate); per-output rows and a summary. Each
+    clip also goes into ``rate_styles`` of the styles (spread over the list) at each of ``rates``
+    for the jerk ratio there."""
+    judges = judges or []
+    rows, jerks = [], {}
+    spread = [styles[round(i * (len(styles) - 1) / max(rate_styles - 1, 1))] for i in range(rate_styles)]
     for title, source in tqdm(clips, desc="unseen clips", disable=not progress):
         for style in styles:
-            rows.append({"clip": title, "style": style, **check(source, stylize(source, style))})
+            output = stylize(source, style)
+            row = {"clip": title, "style": style, **check(source, output)}
+            if row["finite"]:
+                row.update(_recognition(judges, source, output, style))
+                row["jerk_ratio"] = metrics.jerk(output) / metrics.jerk(source)
+            rows.append(row)
+        for rate in rates:
+            low = resample(source, rate)
+            for style in dict.fromkeys(spread):
+                out = stylize(low, style)
+                if np.isfinite(out.positions).all():
+                    jerks.setdefault(rate, []).append(metrics.jerk(out) / metrics.jerk(low))
+    jerks[float(clips[0][1].fps) if clips else 0.0] = [r["jerk_ratio"] for r in rows if "jerk_ratio" in r]
     ratios = [r["foot_skating_ratio"] for r in rows if r["foot_skating_ratio"] is not None
               and np.isfinite(r["foot_skating_ratio"])]
     steps = [r["largest_joint_step_deg"] for r in rows if r["largest_joint_step_deg"] is not None]
@@ -82,6 +119,14 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
         "outputs": len(rows),
         "non_finite_outputs": sum(not r["finite"] for r in rows),
         "outputs_with_flips": sum(bool(r["flips"]) for r in rows),
+    }
+    for k in range(1, len(judges) + 1):
+        judged = [r for r in rows if f"recognised_{k}" in r]
+        if judged:
+            summary[f"style_recognised_{k}"] = float(np.mean([r[f"recognised_{k}"] for r in judged]))
+            summary[f"target_raised_{k}"] = float(np.mean([r[f"target_gain_{k}"] > 0 for r in judged]))
+            summary[f"target_gain_median_{k}"] = float(np.median([r[f"target_gain_{k}"] for r in judged]))
+    summary.update({
         "largest_joint_step_deg": max(steps) if steps else None,
         "largest_joint_step_input_deg": max(r["largest_joint_step_input_deg"] for r in rows),
         "foot_skating_ratio_median": float(np.median(ratios)) if ratios else None,
@@ -89,5 +134,6 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
         "outputs_skating_over_1.5x": sum(r > 1.5 for r in ratios),
         "bone_length_error_max": max((r["bone_length_error"] for r in rows
                                       if r["bone_length_error"] is not None), default=None),
-    }
-    return {"summary": summary, "rows": rows}
+        **{f"jerk_ratio_median_{rate:g}hz": float(np.median(v)) for rate, v in sorted(jerks.items()) if v},
+    })
+    return {"summary": summary, "rows": rows, "rate_styles": list(dict.fromkeys(spread))}

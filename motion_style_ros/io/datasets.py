@@ -20,6 +20,11 @@ Every Bandai file is one take, so a split by file never puts frames of one take 
   ``normal``, which have two): second and later takes -> test, everything else -> train. Holding
   out a single-take cell would remove that content/style pair from training altogether, so only
   repeated takes are held out, and there is no val split.
+- Style labels: dataset-1's styles were acted by other performers in another session. Only its
+  ``feminine`` takes read as dataset-2's ``feminine`` to a dataset-2 style judge (7 of 7 walks and
+  runs); its ``active`` 3 of 7, its ``normal`` 1 of 7 (5 of 7 read ``feminine``: the performer, not the
+  style). So no dataset-1 style is merged into a dataset-2 one: the three names both sets use get
+  the suffix ``-d1`` (``active-d1``, ``feminine-d1``, ``normal-d1``), the other twelve keep their names.
 - CMU and Xia clips are ``unseen``: other capture setups and skeletons, only ever used as inputs at
   evaluation time. Xia (Aberman et al.'s retarget) is licensed for research use only: never train
   shipped models on it.
@@ -61,6 +66,8 @@ log = logging.getLogger(__name__)
 
 BANDAI_FPS = 30.0
 BANDAI_DATASETS = (1, 2)
+DATASET2_STYLES = ("active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful")
+DATASET1_SUFFIX = "-d1"  # dataset-1 styles named like a dataset-2 style (see the module docstring)
 XIA_CONTENTS = {"01": "walk", "13": "run", "16": "jump", "18": "punch"}
 SPLITS = ("train", "val", "test", "unseen")
 SPLIT_FILE = "resources/bandai_split.csv"  # inside the motion_style_ros package
@@ -171,8 +178,15 @@ def _scan_bandai(base: Path, dataset: int) -> tuple[list[ClipInfo], list[str]]:
             continue
         _, content, style, take = _BANDAI_NAME.fullmatch(path.stem).groups()
         name = f"bandai-{dataset}"
+        style = style_label(name, style)
         infos.append(ClipInfo(name, path, path.stem, content, style, take, split_rule(name, take)))
     return infos, problems
+
+
+def style_label(dataset: str, style: str) -> str:
+    """The style label of a Bandai take: its file's style name, with ``-d1`` for a dataset-1 style
+    named like a dataset-2 one (the same word, another performer's style)."""
+    return style + DATASET1_SUFFIX if dataset == "bandai-1" and style in DATASET2_STYLES else style
 
 
 @memoize
@@ -381,7 +395,7 @@ def _cached(base: Path, dataset: int, progress: bool, rebuild: bool = False) -> 
             log.warning(message)
     data = base / "data"
     infos = _with_committed_split(
-        ClipInfo(f"bandai-{dataset}", data / f"{n}.bvh", n, c, s, t, "")
+        ClipInfo(f"bandai-{dataset}", data / f"{n}.bvh", n, c, style_label(f"bandai-{dataset}", s), t, "")
         for n, c, s, t in json.loads(str(arrays["clips"]))
     )
     return _Cached(

@@ -1,4 +1,9 @@
-"""The judges: small temporal CNNs that classify a clip's style or content from its features.
+"""The judges: small networks that classify a clip's style or content from its features.
+
+Two panels, built differently so that one cannot share the other's blind spots: the first
+(:class:`Judge`, a temporal CNN on joint positions and velocities) is what training runs may be
+compared and selected with; the second (:class:`RecurrentJudge`, a bidirectional GRU on local
+rotations, root motion and velocities, another seed, no epoch selection) only ever reports.
 
 They are evaluation instruments, trained on real clips only; a stylizer must never be trained
 against them (it would learn to fool the judge, and the judge would stop measuring anything).
@@ -59,3 +64,38 @@ class Judge(nn.Module):
         embedding = self.encoder(x).mean(dim=-1)
         return self.head(embedding), embedding
 
+
+
+class RecurrentJudge(nn.Module):
+    """The second panel's judge: raw ``encode()`` features ``(B, T, F)`` -> ``logits (B, classes)``,
+    ``embedding (B, E)``. A linear projection, a 2-layer bidirectional GRU, then mean and max over
+    time (any clip length) projected to the embedding. Same interface as :class:`Judge`."""
+
+    def __init__(
+        self,
+        mean: np.ndarray,
+        std: np.ndarray,
+        n_classes: int,
+        width: int = 64,
+        embedding: int = 64,
+        dropout: float = 0.2,
+        columns: np.ndarray | None = None,
+    ) -> None:
+        super().__init__()
+        columns = np.arange(len(mean)) if columns is None else np.asarray(columns)
+        self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
+        self.register_buffer("std", torch.as_tensor(std, dtype=torch.float32))
+        self.register_buffer("columns", torch.as_tensor(columns, dtype=torch.int64), persistent=False)
+        self.project = nn.Sequential(nn.Dropout(dropout), nn.Linear(len(columns), width), nn.Tanh())
+        self.gru = nn.GRU(width, width, num_layers=2, batch_first=True, bidirectional=True)
+        self.pool = nn.Sequential(nn.Linear(4 * width, embedding), nn.Tanh())
+        self.head = nn.Sequential(nn.Dropout(dropout), nn.Linear(embedding, n_classes))
+
+    def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        x = ((features - self.mean) / self.std).index_select(-1, self.columns)
+        h, _ = self.gru(self.project(x))
+        embedding = self.pool(torch.cat([h.mean(dim=1), h.amax(dim=1)], dim=-1))
+        return self.head(embedding), embedding
+
+
+ARCHITECTURES = {"cnn": Judge, "gru": RecurrentJudge}

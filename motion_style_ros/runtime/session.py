@@ -58,7 +58,7 @@ from motion_style_ros.core.features import FEATURE_VERSION, UP, StreamDecoder, S
 from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.motion import Motion, forward_kinematics
 from motion_style_ros.core.proportions import CONTACTS, StreamScale, clip_scale
-from motion_style_ros.core.resample import resample
+from motion_style_ros.core.resample import hermite, resample
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.core.standing import Standing
 from motion_style_ros.errors import MotionStyleError
@@ -280,7 +280,7 @@ class RecurrentSession:
         self._stamp: float | None = None
         self._origin, self._ticks = 0.0, 0  # model frame k is at stream time origin + k / fps
         self._input: tuple[np.ndarray, np.ndarray] | None = None
-        self._outputs: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last two model frames
+        self._outputs: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last three model frames
 
     def _advance(self, stamp: float, q: np.ndarray, p: np.ndarray) -> None:
         """Run the model frames up to the input frame at ``stamp``, each one's input interpolated
@@ -326,7 +326,7 @@ class RecurrentSession:
         """Keep a model frame's output at stream time ``t``, in the stream's own joint frames."""
         if self._rolls is not None:
             q, p = self._rolls.undo(q), self._scale.to_stream(p)
-        self._outputs = [*self._outputs[-1:], (t, q, p)]
+        self._outputs = [*self._outputs[-2:], (t, q, p)]
 
     def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
         """One model frame for all performers at stream time ``t``."""
@@ -371,9 +371,7 @@ class RecurrentSession:
         t1, q1, p1 = self._outputs[-1]
         if len(self._outputs) == 1 or t >= t1 - STAMP_TOLERANCE:
             return q1.copy(), p1.copy()  # the caller may write into what it gets
-        t0, q0, p0 = self._outputs[0]
-        w = max(0.0, (t - t0) / (t1 - t0))
-        return rot.slerp(q0, q1, w), p0 + w * (p1 - p0)
+        return hermite(self._outputs, t)
 
     def _check_stamp(self, stamp: float | None) -> float:
         if stamp is None:

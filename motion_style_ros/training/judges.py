@@ -1,8 +1,11 @@
-"""Training of the style and content judges on real Bandai dataset-2 takes, ONNX export, model card.
+"""Training of the style and content judges on real Bandai takes (both sets), ONNX export, card.
 
-The judges are instruments: they are trained on real recordings only, selected on the val takes
-and scored on the held-out test takes, and then shipped frozen in ``models/``. No stylizer may use
-them as a training loss.
+The judges are instruments: they are trained on real recordings only, scored on the held-out test
+takes, and then shipped frozen in ``models/``. No stylizer may use them as a training loss. There
+are two panels (see :mod:`motion_style_ros.models.judge`): the first (``judge_<kind>``) picks its
+best epoch on the val takes and is what stylizer runs may be compared and selected with; the
+second (``judge2_<kind>``) is another architecture on other features and another seed, keeps its
+last epoch, and only ever reports.
 """
 
 from __future__ import annotations
@@ -16,13 +19,14 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
+from torch import nn
 from tqdm import tqdm
 
 from motion_style_ros.core.features import FEATURE_VERSION, encode, feature_layout
+from motion_style_ros.evaluation.judges import KINDS, judge_file  # noqa: F401 (KINDS: the CLI's)
 from motion_style_ros.io.datasets import ClipInfo, index_bandai, load_bandai
-from motion_style_ros.models.judge import Judge
+from motion_style_ros.models.judge import ARCHITECTURES, Judge
 
-KINDS = ("style", "content")
 FPS = 30.0
 CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
 WINDOW, HOP = 60, 30  # window-level accuracy: 2 s windows every second
@@ -37,9 +41,12 @@ class Config:
     """Everything that shapes the result; a checkpoint resumes only under the same config."""
 
     kind: str
+    panel: int = 1  # 1: selects its epoch on val, may guide training choices; 2: reports only
+    architecture: str = "cnn"  # a key of models.judge.ARCHITECTURES
     # Feature blocks the judge sees. Joint positions and velocities, not local rotations: they
     # mean the same on every rig, so the judges also read motions retargeted from other skeletons.
     inputs: tuple[str, ...] = ("root", "pos", "vel", "contact")
+    select: bool = True  # keep the best val epoch (else the last)
     seed: int = 0
     epochs: int = 15
     crops_per_epoch: int = 4096
@@ -54,6 +61,15 @@ class Config:
     std_floor: float = 0.05
 
 
+def second_panel(kind: str, **changes) -> Config:
+    """The second panel's judge of ``kind``: a bidirectional GRU on local rotations, root motion
+    and velocities (not the first's positions and contacts), other crop lengths, seed 1, and no
+    look at the val takes at all (last epoch)."""
+    preset = dict(panel=2, architecture="gru", inputs=("root", "rot6d", "vel"), select=False,
+                  seed=1, epochs=8, crop_frames=(45, 150))
+    return Config(kind=kind, **{**preset, **changes})
+
+
 @dataclass
 class Split:
     features: list[np.ndarray]  # (T, F) per clip
@@ -61,8 +77,8 @@ class Split:
 
 
 def encode_clips(progress: bool = True) -> list[tuple[ClipInfo, np.ndarray]]:
-    """Every Bandai dataset-2 clip with its ``encode()`` features (both judges train on them)."""
-    clips = load_bandai(index_bandai(datasets=(2,)), progress=progress)
+    """Every Bandai clip of both sets with its ``encode()`` features (every judge trains on them)."""
+    clips = load_bandai(index_bandai(), progress=progress)
     return [(info, encode(m)) for info, m in tqdm(clips, desc="features", disable=not progress)]
 
 
@@ -149,6 +165,8 @@ def export_onnx(model: Judge, path: Path) -> None:
         warnings.simplefilter("ignore", DeprecationWarning)
         # Edge padding exports as Slice ops it cannot fold; harmless, and not the user's concern.
         warnings.filterwarnings("ignore", message="Constant folding")
+        # The GRU has no initial-state input, so ONNX Runtime starts it at zeros for any batch size.
+        warnings.filterwarnings("ignore", message="Exporting a model to ONNX with a batch_size")
         torch.onnx.export(
             model,
             (torch.zeros(1, 64, len(model.mean)),),
@@ -161,6 +179,20 @@ def export_onnx(model: Judge, path: Path) -> None:
             opset_version=17,
             dynamo=False,
         )
+
+
+@torch.no_grad()
+def parity(model: nn.Module, path: Path, clips: list[np.ndarray]) -> tuple[float, int]:
+    """Largest logit difference between the ONNX graph and the torch network on ``clips`` (each
+    whole, batch 1, as the evaluation runs them), and how many clips."""
+    from motion_style_ros.runtime.onnx_model import OnnxModel
+
+    session, worst = OnnxModel(path), 0.0
+    model.eval()
+    for f in clips:
+        expected = model(torch.from_numpy(f[None]))[0].numpy()
+        worst = max(worst, float(np.abs(session.run(features=f[None])["logits"] - expected).max()))
+    return worst, len(clips)
 
 
 def train(
@@ -181,11 +213,12 @@ def train(
     train_split = splits["train"]
     mean, std = _normalisation(train_split, cfg.std_floor)
     torch.manual_seed(cfg.seed)  # initial weights
-    model = Judge(mean, std, len(labels), cfg.width, cfg.embedding, cfg.dropout, input_columns(cfg.inputs))
+    model = ARCHITECTURES[cfg.architecture](mean, std, len(labels), cfg.width, cfg.embedding,
+                                            cfg.dropout, input_columns(cfg.inputs))
     optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
 
     checkpoints.mkdir(parents=True, exist_ok=True)
-    ckpt_path = checkpoints / f"judge_{cfg.kind}_seed{cfg.seed}.pt"
+    ckpt_path = checkpoints / f"{Path(judge_file(cfg.kind, cfg.panel)).stem}_seed{cfg.seed}.pt"
     state = {"epoch": -1, "best": None, "history": [], "train_seconds": 0.0}
     earlier = 0.0
     if ckpt_path.exists():
@@ -220,13 +253,14 @@ def train(
             optimizer.step()
             losses.append(loss.item())
             bar.set_postfix(loss=f"{np.mean(losses[-20:]):.3f}")
-        val_acc, val_loss = _scores(model, splits["val"])
+        # The second panel never looks at the val takes: it keeps its last epoch.
+        val_acc, val_loss = _scores(model, splits["val"]) if cfg.select else (None, None)
         state["history"].append({
             "epoch": epoch + 1, "train_loss": float(np.mean(losses)),
             "val_accuracy": val_acc, "val_loss": val_loss,
         })
         best = state["best"]
-        if best is None or (val_acc, -val_loss) > (best["val_accuracy"], -best["val_loss"]):
+        if not cfg.select or best is None or (val_acc, -val_loss) > (best["val_accuracy"], -best["val_loss"]):
             state["best"] = {
                 "epoch": epoch + 1,
                 "val_accuracy": val_acc,
@@ -235,7 +269,8 @@ def train(
             }
         state["epoch"] = epoch
         state["train_seconds"] += time.perf_counter() - t0
-        print(f"{cfg.kind} epoch {epoch + 1}: loss {np.mean(losses):.3f}, val accuracy {val_acc:.3f}")
+        print(f"{cfg.kind} epoch {epoch + 1}: loss {np.mean(losses):.3f}"
+              + (f", val accuracy {val_acc:.3f}" if cfg.select else ""))
         tmp = ckpt_path.with_suffix(".tmp")
         torch.save(
             {"config": {**asdict(cfg), "epochs": None}, "model": model.state_dict(),
@@ -246,9 +281,10 @@ def train(
 
     model.load_state_dict(state["best"]["model"])
     out_dir.mkdir(parents=True, exist_ok=True)
-    onnx_path = out_dir / f"judge_{cfg.kind}.onnx"
+    onnx_path = out_dir / judge_file(cfg.kind, cfg.panel)
     export_onnx(model, onnx_path)
     card = _card(cfg, model, labels, splits, state, onnx_path)
+    card["onnx_torch_max_abs_diff"], card["parity_probe_clips"] = parity(model, onnx_path, splits["test"].features[:4])
     card["training"]["wall_time_s"] = round(earlier + time.perf_counter() - started, 1)
     onnx_path.with_suffix(".json").write_text(json.dumps(card, indent=2) + "\n")
     return card
@@ -292,23 +328,28 @@ def _card(
         "clip_length_note": "Convolutions pad by repeating edge frames, so any length works; "
                             f"trained on {crop_s[0]:g}-{crop_s[1]:g} s crops, clips under 1 s carry "
                             "little style.",
+        "panel": cfg.panel,
         "architecture": (
             f"Conv1d x4 (kernel 5, LeakyReLU 0.2, width {cfg.width}; strides 1,2,1,2; dilation 2 in "
             f"the third; replicate padding; receptive field 33 frames) -> mean over time -> "
             f"{cfg.embedding}-d embedding -> dropout -> linear"
+            if cfg.architecture == "cnn" else
+            f"dropout -> linear {cfg.width} + tanh -> 2-layer bidirectional GRU (width {cfg.width}) "
+            f"-> mean and max over time -> linear {cfg.embedding} + tanh (embedding) -> dropout -> linear"
         ),
         "embedding_size": cfg.embedding,
         "parameters": int(sum(p.numel() for p in model.parameters())),
         "normalisation": "per-feature mean and std of all train frames (std floored at "
                          f"{cfg.std_floor}), stored in the graph as constants",
         "training": {
-            "data": "Bandai Namco Research Motion Dataset 2, 'train' takes; selection on 'val' "
-                    "takes; test on held-out 'test' takes (split by take, never by window)",
-            "excluded": "Dataset 1: most cells have one or two takes, too few to hold any out, "
-                        "and its styles differ from dataset 2's.",
+            "data": "Bandai Namco Research Motion Datasets 1 and 2, 'train' takes; "
+                    + ("selection on dataset-2 'val' takes" if cfg.select else "the last epoch kept "
+                       "(val takes never looked at)")
+                    + "; test on held-out 'test' takes (split by take, never by window)",
+            "labels": "styles from motion_style_ros.io.datasets.style_label (dataset-1 styles "
+                      "named like a dataset-2 style carry the suffix -d1)",
             "clips": {name: len(s.labels) for name, s in splits.items()},
-            "command": f"motion-style train judges --kind {cfg.kind} --epochs {cfg.epochs} "
-                       f"--seed {cfg.seed}",
+            "command": f"motion-style train judges --panel {cfg.panel} --kind {cfg.kind}",
             "config": asdict(cfg),
             "optimizer": "Adam, cross-entropy with label smoothing, class-balanced sampling of "
                          "random crops",
@@ -316,7 +357,7 @@ def _card(
             "history": state["history"],
         },
         "accuracy": {
-            "val_clip": round(best["val_accuracy"], 4),
+            "val_clip": None if best["val_accuracy"] is None else round(best["val_accuracy"], 4),
             "test_clip": round(float((pred == test.labels).mean()), 4),
             "test_window": round(float((window_pred == window_labels).mean()), 4),
             "test_window_frames": WINDOW,

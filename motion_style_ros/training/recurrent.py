@@ -25,6 +25,8 @@ from torch import nn
 from tqdm import tqdm
 
 from motion_style_ros.core.features import FEATURE_VERSION, encode, feature_layout
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.resample import resample
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import index_bandai, load_bandai
@@ -44,18 +46,18 @@ NAME = "style_erd"
 OPSET = 17
 NEUTRAL = "normal"
 CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
-# Dataset-1 styles that name a dataset-2 style; the other eight dataset-1 styles have no counterpart.
-DATASET1_STYLES = {"normal": "normal", "active": "active", "feminine": "feminine",
-                   "masculinity": "masculine", "old": "elderly", "tired": "exhausted",
-                   "childish": "youthful"}
-
 
 @dataclass(frozen=True)
 class Config:
     """Everything that shapes the result; a checkpoint resumes only under the same config."""
 
     seed: int = 0
-    datasets: tuple[int, ...] = (2,)
+    datasets: tuple[int, ...] = (1, 2)
+    # data: every train take is also used played this much slower and faster (other performers
+    # walk at other paces); windows are drawn with weight frames / style_frames ** balance, so
+    # dataset-1's styles (one take per content) are drawn more often than their share of frames
+    speeds: tuple[float, ...] = (0.8, 1.25)
+    balance: float = 0.5
     # generator (see models.style_erd.ErdConfig). Shallower and wider than the paper's 6 + 4 LSTM
     # layers of width 32: on 2 CPU cores the deep stacks had barely started to reconstruct after
     # 300 iterations while this one was within a few centimetres (pos loss 0.08 vs 0.94).
@@ -80,6 +82,9 @@ class Config:
     w_adv: float = 1.0
     w_per: float = 0.1
     w_gp: float = 10.0
+    # foot contact (Style-ERD's own loss): a foot joint the input holds still stays still in the
+    # transferred output (squared velocity where the input's contact feature is 1)
+    w_foot: float = 0.5
     # the adversarial and perceptual weights ramp up linearly over the first iterations, so the
     # generator reconstructs plausible motion before the critics push it around
     warmup: int = 2000
@@ -106,7 +111,8 @@ def tiny_config(**changes) -> Config:
     """A small, fast configuration with the real data path (tests)."""
     return replace(Config(encoder=(16,), latent=8, neutral_layers=2, style_layers=1, decoder=(16,),
                           batch=4, crops=1, crop_frames=12, dis_widths=(16,), dis_features=4,
-                          content_widths=(16,), content_iterations=5, content_batch=4, warmup=10),
+                          content_widths=(16,), content_iterations=5, content_batch=4, warmup=10,
+                          speeds=()),
                    **changes)
 
 
@@ -118,6 +124,7 @@ class Clips:
     features: list[np.ndarray]  # (T, F) float32 per take
     styles: np.ndarray  # index into the model's styles
     contents: np.ndarray  # index into the content labels
+    weights: np.ndarray | None = None  # per take, relative chance of a frame (None: all alike)
 
 
 @dataclass
@@ -127,44 +134,58 @@ class Data:
     splits: dict[str, Clips]  # "train", "val"
 
 
-def load_data(datasets: tuple[int, ...] = (2,), progress: bool = True, root: Path | None = None,
-              takes_per_cell: int | None = None) -> Data:
-    """Encoded train and val takes with style and content indices. Dataset-1 takes join under the
-    dataset-2 style their style names (``DATASET1_STYLES``); its other styles are left out.
-    ``takes_per_cell`` keeps only the first takes of each split, style and content (tests)."""
+def at_speed(motion: Motion, speed: float) -> Motion:
+    """The clip played ``speed`` times as fast, at its own frame rate."""
+    return resample(Motion(motion.skeleton, motion.rotations, motion.positions, motion.fps * speed), motion.fps)
+
+
+def load_data(datasets: tuple[int, ...] = (1, 2), progress: bool = True, root: Path | None = None,
+              takes_per_cell: int | None = None, speeds: tuple[float, ...] = (),
+              balance: float = 0.0) -> Data:
+    """Encoded train and val takes with style and content indices (every style of the sets, labels
+    from :func:`motion_style_ros.io.datasets.style_label`). Train takes are added again at each of
+    ``speeds``. ``takes_per_cell`` keeps only the first takes of each split, style and content
+    (tests)."""
     infos = [i for i in index_bandai(root, datasets=tuple(sorted(datasets))) if i.split in ("train", "val")]
-    infos = [i for i in infos if i.dataset == "bandai-2" or i.style in DATASET1_STYLES]
-    style_of = {i: i.style if i.dataset == "bandai-2" else DATASET1_STYLES[i.style] for i in infos}
     if takes_per_cell is not None:
         seen: dict[tuple[str, str, str], int] = {}
+        kept = []
         for i in infos:
-            seen[i.split, style_of[i], i.content] = seen.get((i.split, style_of[i], i.content), 0) + 1
-            if seen[i.split, style_of[i], i.content] > takes_per_cell:
-                del style_of[i]
-        infos = list(style_of)
-    styles = tuple(sorted(set(style_of.values())))
+            seen[i.split, i.style, i.content] = seen.get((i.split, i.style, i.content), 0) + 1
+            if seen[i.split, i.style, i.content] <= takes_per_cell:
+                kept.append(i)
+        infos = kept
+    styles = tuple(sorted({i.style for i in infos}))
     contents = tuple(sorted({i.content for i in infos}))
     if NEUTRAL not in styles:
         raise MotionStyleError(f"no '{NEUTRAL}' takes among the Bandai data: the neutral branch needs them")
     loaded = load_bandai(infos, progress=progress)
-    encoded = [(info, encode(m)) for info, m in tqdm(loaded, desc="features", disable=not progress)]
+    encoded = []
+    for info, m in tqdm(loaded, desc="features", disable=not progress):
+        encoded.append((info, encode(m)))
+        if info.split == "train":
+            encoded += [(info, encode(at_speed(m, v))) for v in speeds]
     splits = {}
     for split in ("train", "val"):
         chosen = [(i, f) for i, f in encoded if i.split == split]
-        splits[split] = Clips([f for _, f in chosen],
-                              np.array([styles.index(style_of[i]) for i, _ in chosen]),
-                              np.array([contents.index(i.content) for i, _ in chosen]))
+        style_index = np.array([styles.index(i.style) for i, _ in chosen])
+        frames = np.bincount(style_index, [len(f) for _, f in chosen], len(styles))
+        splits[split] = Clips([f for _, f in chosen], style_index,
+                              np.array([contents.index(i.content) for i, _ in chosen]),
+                              1.0 / np.maximum(frames[style_index], 1.0) ** balance if balance else None)
     return Data(styles, contents, splits)
 
 
 def windows(clips: Clips, length: int, count: int, rng: np.random.Generator
             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """``count`` random ``length``-frame windows (uniform over the frames of the takes long enough):
+    """``count`` random ``length``-frame windows (over the frames of the takes long enough, by the
+    takes' weights):
     features ``(count, length, F)``, style and content indices ``(count,)``."""
     spans = np.array([max(len(f) - length + 1, 0) for f in clips.features], dtype=float)
     if spans.sum() == 0:
         raise MotionStyleError(f"no take has the {length} frames a training window needs")
-    idx = rng.choice(len(spans), size=count, p=spans / spans.sum())
+    chance = spans if clips.weights is None else spans * clips.weights
+    idx = rng.choice(len(spans), size=count, p=chance / chance.sum())
     starts = rng.integers(0, spans[idx].astype(int))
     x = np.stack([clips.features[i][s : s + length] for i, s in zip(idx, starts)])
     return (torch.from_numpy(x), torch.from_numpy(clips.styles[idx]),
@@ -232,6 +253,10 @@ class Losses(nn.Module):
         self.register_buffer("std", torch.as_tensor(std, dtype=torch.float32))
         self.rot_cols = slice(s["rot6d"].start, s["rot6d"].stop)
         self.pv_cols = slice(s["pos"].start, s["vel"].stop)
+        self.contact_cols = s["contact"]
+        sk = canonical()
+        joints = list(feature_layout(sk).joints)
+        self.feet = [joints.index(f) for f in sk.feet]  # the contact block's order
 
     def views(self, frames: torch.Tensor) -> dict[str, torch.Tensor]:
         """Rotations, positions, velocities of ``[root | rot6d]`` frames, and the critics' inputs
@@ -252,6 +277,13 @@ class Losses(nn.Module):
             "vel": c.w_vel * ((out["vel"] - real["vel"]) / self.vel_scale).pow(2).sum(-1).mean(),
             "root": c.w_root * ((out["root"] - real["root"]) / self.root_std).pow(2).mean(),
         }
+
+    def foot(self, out: dict[str, torch.Tensor], x: torch.Tensor) -> torch.Tensor:
+        """Squared velocity (train-std units) of the foot joints the input ``x`` (features) holds
+        in contact, per frame 1.. (the first has no velocity)."""
+        contact = x[:, 1:, self.contact_cols]
+        speed = (out["vel"][:, :, self.feet] / self.vel_scale).pow(2).sum(-1)
+        return (contact * speed).mean()
 
     def crops(self, pv: torch.Tensor) -> torch.Tensor:
         """``(B, crops * crop_frames, C)`` -> ``(B * crops, crop_frames, C)``."""
@@ -438,8 +470,9 @@ class Trainer:
             _, target_maps = self.content(real["content"])
         _, maps = self.content(fake["content"])
         per = sum(F.mse_loss(a, b) for a, b in zip(maps, target_maps))
+        foot = self.losses.foot(fake, x)
         ramp = min(1.0, (iteration + 1) / cfg.warmup) if cfg.warmup else 1.0
-        total = sum(terms.values()) + ramp * (cfg.w_adv * adv + cfg.w_per * per)
+        total = sum(terms.values()) + ramp * (cfg.w_adv * adv + cfg.w_per * per + cfg.w_foot * foot)
         self.opt_g.zero_grad()
         total.backward()
         self.opt_g.step()
@@ -447,7 +480,7 @@ class Trainer:
             for p_avg, p in zip(self.ema.parameters(), self.model.parameters()):
                 p_avg.lerp_(p, 1 - cfg.ema)
         return {**{k: v.item() for k, v in terms.items()}, "rec": sum(terms.values()).item(),
-                "adv": adv.item(), "per": per.item(), "critic": critic.item(), "gp": gp.item()}
+                "adv": adv.item(), "per": per.item(), "foot": foot.item(), "critic": critic.item(), "gp": gp.item()}
 
     @torch.no_grad()
     def validate(self, model: StyleERD | None = None) -> dict[str, float]:
@@ -551,7 +584,7 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     the model card."""
     torch.set_num_threads(threads)
     started = time.perf_counter()
-    data = data or load_data(cfg.datasets, progress)
+    data = data or load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance)
     trainer = Trainer.started(cfg, data, checkpoints, progress, resume)
     setup_s = time.perf_counter() - started
     trainer.run(minutes, iterations)
@@ -560,11 +593,10 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     info = {
         "data": f"Bandai Namco Research Motion Dataset(s) {', '.join(map(str, cfg.datasets))}: 'train' "
                 "takes (val takes for the val losses; test takes never seen)",
-        "excluded": "Dataset 1: 7 of its 15 styles map onto dataset-2 styles only by name (other "
-                    "performers and sessions) and it has one take per cell. In an 8-minute "
-                    "measurement (1.4k iterations each), adding its mapped takes made the "
-                    "dataset-2 val reconstruction worse (3.18 vs 2.18) and only the dataset-1 "
-                    "held-out takes better (6.95 vs 8.24), so the shipped model uses dataset 2.",
+        "styles": ("every style of the sets; dataset-1 styles named like a dataset-2 style are "
+                   "their own styles with the suffix -d1 (motion_style_ros.io.datasets.style_label)"),
+        "augmentation": f"every train take also at speeds {list(cfg.speeds)}; windows weighted "
+                        f"frames / style_frames ** {cfg.balance}",
         "clips": {k: len(c.features) for k, c in data.splits.items()},
         "contents": list(data.contents),
         "command": command,
