@@ -46,7 +46,8 @@ def test_features(judges, test_split):
 def test_the_two_panels_are_built_differently_and_the_second_never_saw_val_takes(all_judges):
     for kind in KINDS:
         first, second = (all_judges[kind, p].card["training"] for p in PANELS)
-        assert first["config"]["architecture"] != second["config"]["architecture"]
+        assert (first["config"]["architecture"], first["config"]["width"]) != (
+            second["config"]["architecture"], second["config"]["width"])
         assert set(first["config"]["inputs"]) != set(second["config"]["inputs"])
         assert first["config"]["seed"] != second["config"]["seed"]
         assert not second["config"]["select"]
@@ -90,15 +91,13 @@ def _torch_judge(judge):
     return net.eval()
 
 
-def test_the_recurrent_judges_were_exported_with_torch_parity(all_judges):
-    for kind in KINDS:
-        card = all_judges[kind, 2].card
-        assert card["training"]["config"]["architecture"] == "gru"
+def test_every_judge_was_exported_with_torch_parity(all_judges):
+    for card in (j.card for j in all_judges.values()):
         assert card["onnx_torch_max_abs_diff"] < 1e-4
         assert card["parity_probe_clips"] >= 3
 
 
-@pytest.mark.parametrize("kind,panel", [(kind, 1) for kind in KINDS])
+@pytest.mark.parametrize("kind,panel", [(k, p) for k, p in JUDGES if (k, p) != ("style", 2)])  # a GRU: above
 def test_onnx_matches_torch_on_real_clips_of_any_length(kind, panel, all_judges, test_features):
     torch = pytest.importorskip("torch")
     net = _torch_judge(all_judges[kind, panel])
@@ -194,7 +193,8 @@ def test_runtime_and_evaluation_do_not_import_torch():
     assert out.stdout.strip() == "False"
 
 
-def test_content_judge_reads_motions_retargeted_from_other_rigs(judges, datasets):
+@pytest.mark.parametrize("panel", PANELS)
+def test_content_judges_read_motions_retargeted_from_other_rigs(panel, all_judges, datasets):
     """Unseen capture setups: CMU and Xia walks and runs, retargeted onto the canonical skeleton."""
     from motion_style_ros.core.retarget import retarget
     from motion_style_ros.core.skeleton import canonical
@@ -202,8 +202,8 @@ def test_content_judge_reads_motions_retargeted_from_other_rigs(judges, datasets
 
     infos = [i for i in index_cmu(datasets) + index_xia(datasets) if i.content in ("walk", "run")]
     motions = [load_clip(i)[2:] if i.dataset == "cmu" else load_clip(i) for i in infos]  # CMU: T-pose
-    judged = judges["content"].judge([retarget(m, canonical()) for m in motions])
+    judged = all_judges["content", panel].judge([retarget(m, canonical()) for m in motions])
     accuracy = np.mean([j == i.content for j, i in zip(judged.labels, infos)])
-    print(f"content accuracy on {len(infos)} retargeted CMU/Xia walk/run clips: {accuracy:.2f}")
+    print(f"panel {panel}: content accuracy on {len(infos)} retargeted CMU/Xia walk/run clips: {accuracy:.2f}")
     assert len(infos) >= 20
-    assert accuracy >= 0.7  # chance is 0.1; a judge tied to one rig's joint frames scored 0.14
+    assert accuracy >= 0.7  # chance is 1/24; judges on local rotations scored 0.14

@@ -13,7 +13,7 @@ def add_parser(subparsers):
         description="Train the independent style and content classifiers on real Bandai train "
                     "takes of both sets, export them to ONNX and write their model cards. Panel 1 "
                     "(judge_<kind>, a CNN on positions, best val epoch) may guide training "
-                    "choices; panel 2 (judge2_<kind>, a GRU on rotations, last epoch) only reports.",
+                    "choices; panel 2 (judge2_<kind>, a GRU, last epoch) only reports.",
     )
     judges.add_argument("--kind", choices=("style", "content", "both"), default="both",
                         help="which judge to train (default: both)")

@@ -1,9 +1,10 @@
 """The judges: small networks that classify a clip's style or content from its features.
 
 Two panels, built differently so that one cannot share the other's blind spots: the first
-(:class:`Judge`, a temporal CNN on joint positions and velocities) is what training runs may be
-compared and selected with; the second (:class:`RecurrentJudge`, a bidirectional GRU on local
-rotations, root motion and velocities, another seed, no epoch selection) only ever reports.
+(:class:`Judge`, a temporal CNN on root motion, joint positions, velocities and foot contacts) is
+what training runs may be compared and selected with; the second (style: :class:`RecurrentJudge`, a
+bidirectional GRU; content: a wider CNN; both on root motion, joint positions and velocities,
+another seed, no epoch selection) only ever reports.
 
 They are evaluation instruments, trained on real clips only; a stylizer must never be trained
 against them (it would learn to fool the judge, and the judge would stop measuring anything).
@@ -16,7 +17,24 @@ import torch
 from torch import nn
 
 
-class Judge(nn.Module):
+class _Normalised(nn.Module):
+    """What every judge shares: the train-set feature mean and std as buffers (so the exported
+    graph takes raw features) and the feature columns it looks at (derived from the card's
+    ``inputs``, not saved)."""
+
+    def __init__(self, mean: np.ndarray, std: np.ndarray, columns: np.ndarray | None) -> None:
+        super().__init__()
+        columns = np.arange(len(mean)) if columns is None else np.asarray(columns)
+        self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
+        self.register_buffer("std", torch.as_tensor(std, dtype=torch.float32))
+        self.register_buffer("columns", torch.as_tensor(columns, dtype=torch.int64), persistent=False)
+
+    def inputs(self, features: torch.Tensor) -> torch.Tensor:
+        """Raw ``(B, T, F)`` -> normalised ``(B, T, columns)``."""
+        return ((features - self.mean) / self.std).index_select(-1, self.columns)
+
+
+class Judge(_Normalised):
     """Raw ``encode()`` features ``(B, T, F)`` -> ``logits (B, classes)``, ``embedding (B, E)``.
 
     ``columns`` picks the feature blocks the judge sees (see ``training.judges.Config.inputs``).
@@ -38,13 +56,8 @@ class Judge(nn.Module):
         dropout: float = 0.2,
         columns: np.ndarray | None = None,
     ) -> None:
-        super().__init__()
-        columns = np.arange(len(mean)) if columns is None else np.asarray(columns)
-        n_features = len(columns)
-        self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
-        self.register_buffer("std", torch.as_tensor(std, dtype=torch.float32))
-        # Which feature columns the judge looks at (derived from the card's `inputs`, not saved).
-        self.register_buffer("columns", torch.as_tensor(columns, dtype=torch.int64), persistent=False)
+        super().__init__(mean, std, columns)
+        n_features = len(self.columns)
         act = nn.LeakyReLU(0.2)
         self.encoder = nn.Sequential(
             nn.Dropout(dropout),
@@ -60,13 +73,12 @@ class Judge(nn.Module):
         self.head = nn.Sequential(nn.Dropout(dropout), nn.Linear(embedding, n_classes))
 
     def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        x = ((features - self.mean) / self.std).index_select(-1, self.columns).transpose(1, 2)
-        embedding = self.encoder(x).mean(dim=-1)
+        embedding = self.encoder(self.inputs(features).transpose(1, 2)).mean(dim=-1)
         return self.head(embedding), embedding
 
 
 
-class RecurrentJudge(nn.Module):
+class RecurrentJudge(_Normalised):
     """The second panel's judge: raw ``encode()`` features ``(B, T, F)`` -> ``logits (B, classes)``,
     ``embedding (B, E)``. A linear projection, a 2-layer bidirectional GRU, then mean and max over
     time (any clip length) projected to the embedding. Same interface as :class:`Judge`."""
@@ -81,19 +93,14 @@ class RecurrentJudge(nn.Module):
         dropout: float = 0.2,
         columns: np.ndarray | None = None,
     ) -> None:
-        super().__init__()
-        columns = np.arange(len(mean)) if columns is None else np.asarray(columns)
-        self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
-        self.register_buffer("std", torch.as_tensor(std, dtype=torch.float32))
-        self.register_buffer("columns", torch.as_tensor(columns, dtype=torch.int64), persistent=False)
-        self.project = nn.Sequential(nn.Dropout(dropout), nn.Linear(len(columns), width), nn.Tanh())
+        super().__init__(mean, std, columns)
+        self.project = nn.Sequential(nn.Dropout(dropout), nn.Linear(len(self.columns), width), nn.Tanh())
         self.gru = nn.GRU(width, width, num_layers=2, batch_first=True, bidirectional=True)
         self.pool = nn.Sequential(nn.Linear(4 * width, embedding), nn.Tanh())
         self.head = nn.Sequential(nn.Dropout(dropout), nn.Linear(embedding, n_classes))
 
     def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        x = ((features - self.mean) / self.std).index_select(-1, self.columns)
-        h, _ = self.gru(self.project(x))
+        h, _ = self.gru(self.project(self.inputs(features)))
         embedding = self.pool(torch.cat([h.mean(dim=1), h.amax(dim=1)], dim=-1))
         return self.head(embedding), embedding
 
