@@ -75,6 +75,4 @@ def test_a_cmu_walk_from_a_smaller_performer_keeps_their_stride(datasets):
     # ... and the stylized pose is the full-size performer's after the first second.
     g = {s: o.global_positions()[120:] - o.global_positions()[120:, o.skeleton.pelvis, None]
          for s, o in outs.items()}
-    # (3.3 cm with the 22-style model, under 3 cm with the 7-style one. Without the size
-    # conditioning it is 2.8 cm: the pose hardly depends on it, the stride above does.)
-    assert np.linalg.norm(g[0.8] - g[1.0], axis=-1).mean() < 0.04
+    assert np.linalg.norm(g[0.8] - g[1.0], axis=-1).mean() < 0.03

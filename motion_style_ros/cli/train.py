@@ -42,6 +42,14 @@ def add_parser(subparsers):
                            help="stop after this many iterations in total (default: no limit)")
     recurrent.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     recurrent.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
+    recurrent.add_argument("--datasets", default="2", metavar="N,N",
+                           help="Bandai sets to train on, e.g. 1,2 for every style (default: 2)")
+    recurrent.add_argument("--speeds", default="", metavar="S,S",
+                           help="also train on every take played at these speeds, e.g. 0.8,1.25 (default: none)")
+    recurrent.add_argument("--balance", type=float, default=0.0, metavar="B",
+                           help="draw windows with weight 1 / style_frames ** B (default: 0)")
+    recurrent.add_argument("--foot-weight", type=float, default=0.0, metavar="W",
+                           help="weight of the foot-contact loss (default: 0)")
     recurrent.add_argument("--resume", action="store_true",
                            help="continue from the checkpoint of this seed if there is one "
                                 "(without it, an earlier run's checkpoint is discarded)")
@@ -131,9 +139,21 @@ def run_recurrent(args) -> int:
     if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
     out = Path(args.out) if args.out else models_dir()
-    command = f"motion-style train recurrent --minutes {args.minutes:g} --seed {args.seed}" + (
+    try:
+        cfg = recurrent.Config(
+            seed=args.seed, datasets=tuple(int(n) for n in args.datasets.split(",")),
+            speeds=tuple(float(v) for v in args.speeds.split(",") if v), balance=args.balance,
+            w_foot=args.foot_weight)
+    except ValueError:
+        raise MotionStyleError("--datasets takes set numbers (1,2) and --speeds numbers (0.8,1.25)") from None
+    if not set(cfg.datasets) <= {1, 2} or any(v <= 0 for v in cfg.speeds):
+        raise MotionStyleError("--datasets takes 1 and/or 2; --speeds positive numbers")
+    recipe = "".join(f" --{flag} {value}" for flag, value, default in (
+        ("datasets", args.datasets, "2"), ("speeds", args.speeds, ""), ("balance", f"{args.balance:g}", "0"),
+        ("foot-weight", f"{args.foot_weight:g}", "0")) if value != default)
+    command = f"motion-style train recurrent --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
         f" --iterations {args.iterations}" if args.iterations is not None else "")
-    card = recurrent.train(recurrent.Config(seed=args.seed), out, args.minutes, args.iterations,
+    card = recurrent.train(cfg, out, args.minutes, args.iterations,
                            args.resume, threads=args.threads, command=command + " --resume")
     history = card["training"]["history"]
     val = history["val"][-1]
