@@ -14,11 +14,11 @@ def _stylizers():
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "eval", help="score a stylizer and the baselines on held-out takes",
-        description="Restyle Bandai test takes (dataset 2 unless --dataset 1) into every other style and score the "
-                    "outputs with the shipped style and content judges and motion metrics (style "
-                    "and content accuracy, FMD, content consistency, foot skating, jerk, bone "
-                    "lengths), always beside the identity and oracle baselines. Writes "
-                    "report.json and report.png and prints a table.",
+        description="Restyle Bandai test takes (dataset 2 unless --dataset 1) into every other "
+                    "style and score the outputs with both panels of style and content judges and "
+                    "motion metrics (style and content accuracy, FMD, content consistency, foot "
+                    "skating, jerk, bone lengths), always beside the identity and oracle "
+                    "baselines. Writes report.json and report.png and prints a table.",
     )
     p.add_argument("--stylizer", choices=_stylizers(), action="append", default=None,
                    help="a trained stylizer to score (repeat for several; default: the baselines only)")
@@ -138,7 +138,6 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
     from motion_style_ros.evaluation import unseen
     from motion_style_ros.evaluation.judges import Judge
     from motion_style_ros.io.render import render_gif, render_png
-
     from motion_style_ros.runtime.offline import default_model
     from motion_style_ros.runtime.onnx_model import model_path, read_card
 
@@ -162,9 +161,8 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
             render_gif(motions, titles, stem.with_suffix(".gif"), seconds=6.0)
             print(f"wrote {stem}.png and {stem}.gif")
     path = out / "unseen.json"
-    path.write_text(json.dumps({"settings": {"alpha": args.alpha, "judges": [j.model.path.name for j in judges]},
-                                **reports},
-                               indent=1) + "\n")
+    settings = {"alpha": args.alpha, "judges": [j.model.path.name for j in judges]}
+    path.write_text(json.dumps({"settings": settings, **reports}, indent=1) + "\n")
     print(f"wrote {path}")
     if args.record:
         _record(args, "unseen", {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})

@@ -109,6 +109,8 @@ def run_judges(args) -> int:
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime.onnx_model import models_dir
 
+    from motion_style_ros.evaluation.judges import KINDS
+
     judges = _training("judges")
 
     if args.epochs is not None and args.epochs < 1:
@@ -117,7 +119,7 @@ def run_judges(args) -> int:
     changes = {k: v for k, v in (("epochs", args.epochs), ("seed", args.seed)) if v is not None}
     clips = judges.encode_clips()
     for panel in (1, 2) if args.panel == "both" else (int(args.panel),):
-        for kind in judges.KINDS if args.kind == "both" else (args.kind,):
+        for kind in KINDS if args.kind == "both" else (args.kind,):
             cfg = (judges.Config(kind=kind, **changes) if panel == 1
                    else judges.second_panel(kind, **changes))
             card = judges.train(cfg, out, clips, threads=args.threads)

@@ -8,9 +8,10 @@ of joint ``j``'s own frame, the mate's global rotation is ``M G_j C_j``, so its 
 onto the joint's own (``C_parent o_mate(k) = o_k`` for every child ``k``); where two reflections do
 (a bone along its X axis keeps its length under a 180 degree roll), the one whose mirrored rotations
 match the mate's real ones on Bandai walks and runs was taken (fitted joint by joint from the
-pelvis down; ``test/test_mirror.py`` checks it against the rolled alternative). The canonical skeleton's spine frames have their lateral axis along Z, the
-pelvis's along Y, and the limbs' frames are mirror images already (``C = -I``: the limb's local
-rotations are copied to its mate unchanged).
+pelvis down; ``test/test_mirror.py`` checks it against the rolled alternative). The canonical
+skeleton's spine frames have their lateral axis along Z, the pelvis's along Y, and the limbs'
+frames are mirror images already (``C = -I``: the limb's local rotations are copied to its mate
+unchanged).
 """
 
 from __future__ import annotations

@@ -29,33 +29,43 @@ def resample(motion: Motion, fps: float) -> Motion:
     return Motion(motion.skeleton, rotations, positions, fps)
 
 
-def _hermite_weights(s: float) -> tuple[float, float, float, float]:
-    """Cubic Hermite basis at ``s`` in [0, 1]: weights of x0, m0, x1, m1."""
-    s2, s3 = s * s, s * s * s
-    return 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
+def at_speed(motion: Motion, speed: float) -> Motion:
+    """The clip played ``speed`` times as fast, at its own frame rate."""
+    return resample(Motion(motion.skeleton, motion.rotations, motion.positions, motion.fps * speed), motion.fps)
 
 
-def hermite(frames: list[tuple[float, np.ndarray, np.ndarray]], t: float) -> tuple[np.ndarray, np.ndarray]:
-    """A stream's frame at time ``t`` between its last two frames ``(t, rotations, positions)``,
-    C1 across frames with no look ahead.
+class Hermite:
+    """A stream's frames between its last two frames ``(t, rotations, positions)``, C1 across
+    frames with no look ahead; call it with a time in between.
 
     Each frame's tangent is its backward difference (from the frame before it), so the segment that
     ends at a frame and the one that starts there share its velocity, and a segment needs nothing
     after its end: the same latency as linear interpolation. With two frames only, both tangents
     are their difference (linear). Rotations are interpolated as rotation vectors relative to the
-    segment's first frame (``q0 exp(r(s))``), which keeps the angular velocity continuous too.
+    segment's first frame (``q0 exp(r(s))``), which keeps the angular velocity continuous too. The
+    logarithms are taken once per segment; each time in between costs one exponential.
     """
-    (t0, q0, p0), (t1, q1, p1) = frames[-2], frames[-1]
-    span = t1 - t0
-    s = float(np.clip((t - t0) / span, 0.0, 1.0))
-    inverse = rot.conjugate(q0)
-    r1 = rot.log(rot.multiply(inverse, q1))
-    if len(frames) >= 3:
-        tp, qp, pp = frames[-3]
-        ratio = span / (t0 - tp)
-        r0, v0 = -ratio * rot.log(rot.multiply(inverse, qp)), ratio * (p0 - pp)
-    else:
-        r0, v0 = r1, p1 - p0
-    a, b, c, d = _hermite_weights(s)
-    rotations = rot.multiply(q0, rot.exp(b * r0 + (c + d) * r1))
-    return rotations, a * p0 + b * v0 + c * p1 + d * (p1 - p0)
+
+    def __init__(self, frames: list[tuple[float, np.ndarray, np.ndarray]]) -> None:
+        (self.t0, self.q0, self.p0), (t1, q1, self.p1) = frames[-2], frames[-1]
+        self.span = t1 - self.t0
+        inverse = rot.conjugate(self.q0)
+        self.r1 = rot.log(rot.multiply(inverse, q1))
+        if len(frames) >= 3:
+            tp, qp, pp = frames[-3]
+            ratio = self.span / (self.t0 - tp)
+            self.r0, self.v0 = -ratio * rot.log(rot.multiply(inverse, qp)), ratio * (self.p0 - pp)
+        else:
+            self.r0, self.v0 = self.r1, self.p1 - self.p0
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        s = float(np.clip((t - self.t0) / self.span, 0.0, 1.0))
+        s2, s3 = s * s, s * s * s
+        a, b, c, d = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2  # x0, m0, x1, m1
+        rotations = rot.multiply(self.q0, rot.exp(b * self.r0 + (c + d) * self.r1))
+        return rotations, a * self.p0 + b * self.v0 + c * self.p1 + d * (self.p1 - self.p0)
+
+
+def hermite(frames: list[tuple[float, np.ndarray, np.ndarray]], t: float) -> tuple[np.ndarray, np.ndarray]:
+    """:class:`Hermite` of ``frames`` at ``t`` (one time)."""
+    return Hermite(frames)(t)

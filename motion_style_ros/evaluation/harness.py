@@ -217,7 +217,8 @@ def evaluate(
         systems[name] = {"overall": overall, "per_style": per_style, "skipped": skipped, "pairs": rows}
     return {
         "settings": {
-            "data": f"Bandai Namco Research Motion Dataset {'1' if clips and clips[0][0].dataset == 'bandai-1' else '2'}, test takes",
+            "data": "Bandai Namco Research Motion Dataset "
+                    + ", ".join(sorted({info.dataset.removeprefix("bandai-") for info, _ in clips})) + ", test takes",
             "test_clips": len(clips),
             "pairs": len(pairs),
             "styles": styles,

@@ -72,18 +72,18 @@ def check(source: Motion, output: Motion) -> dict:
     }
 
 
-def _recognition(judges: list[Judge], source: Motion, output: Motion, style: str) -> dict:
+def _recognition(judges: list[Judge], source: np.ndarray, output: Motion, style: str) -> dict:
     """Per judge panel: the judged style of ``output``, whether it is the target, and how much the
-    target's probability rose from the ``source``'s."""
+    target's probability rose from the source's (``source``: its probabilities per judge)."""
     row = {}
-    for k, judge in enumerate(judges, start=1):
+    for k, (judge, before) in enumerate(zip(judges, source), start=1):
         if style not in judge.labels:
             continue
         column = judge.labels.index(style)
-        result = judge.judge([source, output])
-        row[f"judged_style_{k}"] = result.labels[1]
-        row[f"recognised_{k}"] = result.labels[1] == style
-        row[f"target_gain_{k}"] = float(result.probabilities[1, column] - result.probabilities[0, column])
+        result = judge.judge([output])
+        row[f"judged_style_{k}"] = result.labels[0]
+        row[f"recognised_{k}"] = result.labels[0] == style
+        row[f"target_gain_{k}"] = float(result.probabilities[0, column] - before[column])
     return row
 
 
@@ -97,20 +97,21 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
     rows, jerks = [], {}
     spread = [styles[round(i * (len(styles) - 1) / max(rate_styles - 1, 1))] for i in range(rate_styles)]
     for title, source in tqdm(clips, desc="unseen clips", disable=not progress):
+        before = [judge.judge([source]).probabilities[0] for judge in judges]
         for style in styles:
             output = stylize(source, style)
             row = {"clip": title, "style": style, **check(source, output)}
             if row["finite"]:
-                row.update(_recognition(judges, source, output, style))
+                row.update(_recognition(judges, before, output, style))
                 row["jerk_ratio"] = metrics.jerk(output) / metrics.jerk(source)
+                jerks.setdefault(float(source.fps), []).append(row["jerk_ratio"])
             rows.append(row)
         for rate in rates:
             low = resample(source, rate)
             for style in dict.fromkeys(spread):
                 out = stylize(low, style)
                 if np.isfinite(out.positions).all():
-                    jerks.setdefault(rate, []).append(metrics.jerk(out) / metrics.jerk(low))
-    jerks[float(clips[0][1].fps) if clips else 0.0] = [r["jerk_ratio"] for r in rows if "jerk_ratio" in r]
+                    jerks.setdefault(float(rate), []).append(metrics.jerk(out) / metrics.jerk(low))
     ratios = [r["foot_skating_ratio"] for r in rows if r["foot_skating_ratio"] is not None
               and np.isfinite(r["foot_skating_ratio"])]
     steps = [r["largest_joint_step_deg"] for r in rows if r["largest_joint_step_deg"] is not None]

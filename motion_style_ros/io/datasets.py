@@ -73,7 +73,7 @@ SPLITS = ("train", "val", "test", "unseen")
 SPLIT_FILE = "resources/bandai_split.csv"  # inside the motion_style_ros package
 ROTATION_STATS_FILE = "resources/rotation_stats.json"  # 6D local-rotation statistics, train split
 
-CACHE_VERSION = 1  # bump when the cached arrays change meaning
+CACHE_VERSION = 2  # bump when the cached arrays change meaning (2: style labels, style_label)
 # Largest distance (m) of a bone's per-frame translation from the canonical rest offset; the
 # recordings deviate by at most 0.4 mm, another skeleton by centimetres.
 BONE_TOLERANCE = 2e-3
@@ -395,7 +395,7 @@ def _cached(base: Path, dataset: int, progress: bool, rebuild: bool = False) -> 
             log.warning(message)
     data = base / "data"
     infos = _with_committed_split(
-        ClipInfo(f"bandai-{dataset}", data / f"{n}.bvh", n, c, style_label(f"bandai-{dataset}", s), t, "")
+        ClipInfo(f"bandai-{dataset}", data / f"{n}.bvh", n, c, s, t, "")
         for n, c, s, t in json.loads(str(arrays["clips"]))
     )
     return _Cached(

@@ -77,7 +77,6 @@ class Judge(_Normalised):
         return self.head(embedding), embedding
 
 
-
 class RecurrentJudge(_Normalised):
     """The second panel's judge: raw ``encode()`` features ``(B, T, F)`` -> ``logits (B, classes)``,
     ``embedding (B, E)``. A linear projection, a 2-layer bidirectional GRU, then mean and max over

@@ -58,7 +58,7 @@ from motion_style_ros.core.features import FEATURE_VERSION, UP, StreamDecoder, S
 from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.motion import Motion, forward_kinematics
 from motion_style_ros.core.proportions import CONTACTS, StreamScale, clip_scale
-from motion_style_ros.core.resample import hermite, resample
+from motion_style_ros.core.resample import Hermite, resample
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.core.standing import Standing
 from motion_style_ros.errors import MotionStyleError
@@ -281,6 +281,7 @@ class RecurrentSession:
         self._origin, self._ticks = 0.0, 0  # model frame k is at stream time origin + k / fps
         self._input: tuple[np.ndarray, np.ndarray] | None = None
         self._outputs: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last three model frames
+        self._segment: Hermite | None = None  # the curve between the last two, made when first needed
 
     def _advance(self, stamp: float, q: np.ndarray, p: np.ndarray) -> None:
         """Run the model frames up to the input frame at ``stamp``, each one's input interpolated
@@ -327,6 +328,7 @@ class RecurrentSession:
         if self._rolls is not None:
             q, p = self._rolls.undo(q), self._scale.to_stream(p)
         self._outputs = [*self._outputs[-2:], (t, q, p)]
+        self._segment = None
 
     def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
         """One model frame for all performers at stream time ``t``."""
@@ -371,7 +373,9 @@ class RecurrentSession:
         t1, q1, p1 = self._outputs[-1]
         if len(self._outputs) == 1 or t >= t1 - STAMP_TOLERANCE:
             return q1.copy(), p1.copy()  # the caller may write into what it gets
-        return hermite(self._outputs, t)
+        if self._segment is None:
+            self._segment = Hermite(self._outputs)
+        return self._segment(t)
 
     def _check_stamp(self, stamp: float | None) -> float:
         if stamp is None:

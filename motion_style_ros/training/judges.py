@@ -23,7 +23,7 @@ from torch import nn
 from tqdm import tqdm
 
 from motion_style_ros.core.features import FEATURE_VERSION, encode, feature_layout
-from motion_style_ros.evaluation.judges import KINDS, judge_file  # noqa: F401 (KINDS: the CLI's)
+from motion_style_ros.evaluation.judges import judge_file
 from motion_style_ros.io.datasets import ClipInfo, index_bandai, load_bandai
 from motion_style_ros.models.judge import ARCHITECTURES, Judge
 

@@ -25,8 +25,7 @@ from torch import nn
 from tqdm import tqdm
 
 from motion_style_ros.core.features import FEATURE_VERSION, encode, feature_layout
-from motion_style_ros.core.motion import Motion
-from motion_style_ros.core.resample import resample
+from motion_style_ros.core.resample import at_speed
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import index_bandai, load_bandai
@@ -135,12 +134,7 @@ class Data:
     splits: dict[str, Clips]  # "train", "val"
 
 
-def at_speed(motion: Motion, speed: float) -> Motion:
-    """The clip played ``speed`` times as fast, at its own frame rate."""
-    return resample(Motion(motion.skeleton, motion.rotations, motion.positions, motion.fps * speed), motion.fps)
-
-
-def load_data(datasets: tuple[int, ...] = (1, 2), progress: bool = True, root: Path | None = None,
+def load_data(datasets: tuple[int, ...] = (2,), progress: bool = True, root: Path | None = None,
               takes_per_cell: int | None = None, speeds: tuple[float, ...] = (),
               balance: float = 0.0) -> Data:
     """Encoded train and val takes with style and content indices (every style of the sets, labels
@@ -596,8 +590,8 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
                 "takes (val takes for the val losses; test takes never seen)",
         "styles": ("every style of the sets; dataset-1 styles named like a dataset-2 style are "
                    "their own styles with the suffix -d1 (motion_style_ros.io.datasets.style_label)"),
-        "augmentation": f"every train take also at speeds {list(cfg.speeds)}; windows weighted "
-                        f"frames / style_frames ** {cfg.balance}",
+        "augmentation": (f"every train take also at speeds {list(cfg.speeds)}" if cfg.speeds else "none")
+                        + (f"; windows weighted frames / style_frames ** {cfg.balance}" if cfg.balance else ""),
         "clips": {k: len(c.features) for k, c in data.splits.items()},
         "contents": list(data.contents),
         "command": command,
