@@ -14,12 +14,13 @@ from motion_style_ros.core import graph
 from motion_style_ros.core.features import feature_layout
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.models.stgcn import Generator, MappingNetwork, StyleEncoder, tiny
+from motion_style_ros.training import data as training_data
 from motion_style_ros.training import recurrent, stgcn
 
 
 @pytest.fixture(scope="module")
 def data(datasets):
-    return recurrent.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
+    return training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
 
 
 @pytest.fixture(scope="module")

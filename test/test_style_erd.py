@@ -10,12 +10,13 @@ torch = pytest.importorskip("torch")
 ort = pytest.importorskip("onnxruntime")
 
 from motion_style_ros.models.style_erd import StepGraph, StyleERD, tiny
+from motion_style_ros.training import data as training_data
 from motion_style_ros.training import recurrent
 
 
 @pytest.fixture(scope="module")
 def data(datasets):
-    return recurrent.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
+    return training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
 
 
 @pytest.fixture(scope="module")

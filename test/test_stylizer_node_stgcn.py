@@ -163,3 +163,30 @@ def test_a_reference_stays_in_use_when_the_seed_changes(node, model, frames, dat
     dropped = offline(model, frames + more, {120: SEEDED, 240: reference, n + 30: reseeded(False)})
     assert difference(out, kept) < 1e-5
     assert difference(out[n + 40:], dropped[n + 40:]) > 1e-4
+
+
+def test_an_enrolled_style_of_the_style_bank_is_a_target_style(model, ros_env, datasets, tmp_path):
+    from motion_style_ros.runtime import style_bank
+
+    session = WindowedSession(model, lookahead=LOOKAHEAD)
+    entry = session.enrol([canonical_clip(str(datasets / REFERENCE))], ["walk_elderly"])
+    bank = tmp_path / "mine.json"
+    style_bank.write(bank, {"bouncy": entry}, "stgcn", session.model_digest)
+    # started straight into the enrolled style: an unknown one would stop it at start-up
+    proc = start_node("stylizer", ros_env, backend="stgcn", model=model, style_bank=str(bank),
+                      target_style="bouncy", lookahead=LOOKAHEAD)
+    listener = Listener("bank_test")
+    try:
+        client = listener.node.create_client(SetParameters, "/stylizer/set_parameters")
+
+        def set_style(name):
+            request = SetParameters.Request(parameters=[Parameter("target_style", value=name).to_parameter_msg()])
+            return listener.call(client, request, procs=[proc]).results[0]
+
+        assert set_style("normal").successful
+        assert set_style("bouncy").successful
+        refused = set_style("nope")
+        assert not refused.successful and "bouncy" in refused.reason
+    finally:
+        listener.close()
+        stop(proc)

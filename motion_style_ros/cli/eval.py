@@ -49,6 +49,13 @@ def add_parser(subparsers):
                    help="stgcn: take each pair's style code from a test take of the target style "
                         "and another content (through the style encoder) instead of a latent seed; "
                         "--record writes it as eval_reference_codes")
+    p.add_argument("--enrol", default=None, metavar="STYLE",
+                   help="instead (stgcn): enrol STYLE, a Bandai style the model was not trained on, "
+                        "into a style bank from --enrol-clips of its train takes, and score how "
+                        "often both judge panels recognise it in dataset-2 test takes and CMU/Xia "
+                        "clips restyled into it; writes enrolment.json (--record: as enrolment)")
+    p.add_argument("--enrol-clips", type=int, default=4, metavar="K",
+                   help="--enrol: clips to enrol from (default: 4)")
     p.add_argument("--controls", action="store_true",
                    help="instead (stgcn): the cost of each lookahead (0, 8, 16, 32), the "
                         "diversity of latent seeds against styles, and how closely alpha 0 "
@@ -95,6 +102,8 @@ def run(args: argparse.Namespace) -> int:
         return run_unseen(args, stylizers)
     if args.controls:
         return run_controls(args)
+    if args.enrol:
+        return run_enrolment(args)
     judges = Judge("style", args.threads), Judge("content", args.threads)
     second = Judge("style", args.threads, panel=2), Judge("content", args.threads, panel=2)
     clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)
@@ -210,6 +219,30 @@ def run_controls(args: argparse.Namespace) -> int:
     if args.record:
         for key, metrics in report.items():
             _record(args, key, metrics)
+    return 0
+
+
+def run_enrolment(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.evaluation import windowed
+    from motion_style_ros.evaluation.judges import Judge
+
+    if args.stylizer != ["stgcn"]:
+        raise MotionStyleError("--enrol needs the backend with a style encoder: give --stylizer stgcn")
+    out = Path(args.out)
+    judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
+    report = windowed.enrolment(args.enrol, out, args.model or windowed.DEFAULT_MODEL, args.enrol_clips,
+                                args.seed, judges, progress=not args.quiet)
+    print(f"{args.enrol}: enrolled from {', '.join(report['enrolled_from'])} under {report['head']!r}")
+    for key in ("bandai2_test", "unseen"):
+        print(f"{key}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report[key].items()))
+    (out / "enrolment.json").write_text(json.dumps(report, indent=1) + "\n")
+    print(f"wrote {out / 'enrolment.json'}")
+    if args.record:
+        _record(args, "enrolment", {k: v for k, v in report.items() if k != "bank"})
     return 0
 
 

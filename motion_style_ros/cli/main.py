@@ -40,6 +40,7 @@ SUBCOMMANDS = (
     "eval",      # metrics and baselines
     "render",    # plots / videos of motion
     "bench",     # latency and throughput
+    "style",     # enrol styles of your own (style bank)
     "version",   # print versions
 )
 

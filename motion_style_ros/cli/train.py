@@ -42,12 +42,7 @@ def add_parser(subparsers):
                            help="stop after this many iterations in total (default: no limit)")
     recurrent.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     recurrent.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
-    recurrent.add_argument("--datasets", default="2", metavar="N,N",
-                           help="Bandai sets to train on, e.g. 1,2 for every style (default: 2)")
-    recurrent.add_argument("--speeds", default="", metavar="S,S",
-                           help="also train on every take played at these speeds, e.g. 0.8,1.25 (default: none)")
-    recurrent.add_argument("--balance", type=float, default=0.0, metavar="B",
-                           help="draw windows with weight 1 / style_frames ** B (default: 0)")
+    _data_flags(recurrent)
     recurrent.add_argument("--foot-weight", type=float, default=0.0, metavar="W",
                            help="weight of the foot-contact loss (default: 0)")
     recurrent.add_argument("--resume", action="store_true",
@@ -71,6 +66,7 @@ def add_parser(subparsers):
                        help="stop after this many iterations in total (default: no limit)")
     stgcn.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     stgcn.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
+    _data_flags(stgcn)
     stgcn.add_argument("--resume", action="store_true",
                        help="continue from the checkpoint of this seed if there is one "
                             "(without it, an earlier run's checkpoint is discarded)")
@@ -87,6 +83,43 @@ def add_parser(subparsers):
                             "until their joints differ by M metres on average (default: on the "
                             "normalised output channels, uncapped)")
     stgcn.set_defaults(func=run_stgcn)
+
+
+_DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": ""}
+
+
+def _data_flags(parser) -> None:
+    """The data flags both stylizer trainers take (fields of their configs; training.data)."""
+    parser.add_argument("--datasets", default="2", metavar="N,N",
+                        help="Bandai sets to train on, e.g. 1,2 for every style (default: 2)")
+    parser.add_argument("--speeds", default="", metavar="S,S",
+                        help="also train on every take played at these speeds, e.g. 0.8,1.25 (default: none)")
+    parser.add_argument("--balance", type=float, default=0.0, metavar="B",
+                        help="draw windows with weight 1 / style_frames ** B (default: 0)")
+    parser.add_argument("--mirror", action="store_true",
+                        help="also train on every take mirrored left-right (default: off)")
+    parser.add_argument("--exclude-styles", default="", metavar="NAME,NAME",
+                        help="leave these styles out, e.g. to enrol one later with 'motion-style style "
+                             "add' (default: none)")
+
+
+def _data_fields(args) -> tuple[dict, str]:
+    """The config fields of the data flags, and the flags as they would be typed again."""
+    from motion_style_ros.errors import MotionStyleError
+
+    try:
+        fields = {"datasets": tuple(int(n) for n in args.datasets.split(",")),
+                  "speeds": tuple(float(v) for v in args.speeds.split(",") if v),
+                  "balance": args.balance, "mirror": args.mirror,
+                  "exclude": tuple(n for n in args.exclude_styles.split(",") if n)}
+    except ValueError:
+        raise MotionStyleError("--datasets takes set numbers (1,2) and --speeds numbers (0.8,1.25)") from None
+    if not fields["datasets"] or not set(fields["datasets"]) <= {1, 2} or any(v <= 0 for v in fields["speeds"]):
+        raise MotionStyleError("--datasets takes 1 and/or 2; --speeds positive numbers")
+    given = {"datasets": args.datasets, "speeds": args.speeds, "balance": f"{args.balance:g}",
+             "exclude_styles": args.exclude_styles}
+    flags = "".join(f" --{k.replace('_', '-')} {v}" for k, v in given.items() if v != _DATA_DEFAULTS[k])
+    return fields, flags + (" --mirror" if args.mirror else "")
 
 
 def _training(module: str):
@@ -141,18 +174,10 @@ def run_recurrent(args) -> int:
     if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
     out = Path(args.out) if args.out else models_dir()
-    try:
-        cfg = recurrent.Config(
-            seed=args.seed, datasets=tuple(int(n) for n in args.datasets.split(",")),
-            speeds=tuple(float(v) for v in args.speeds.split(",") if v), balance=args.balance,
-            w_foot=args.foot_weight)
-    except ValueError:
-        raise MotionStyleError("--datasets takes set numbers (1,2) and --speeds numbers (0.8,1.25)") from None
-    if not set(cfg.datasets) <= {1, 2} or any(v <= 0 for v in cfg.speeds):
-        raise MotionStyleError("--datasets takes 1 and/or 2; --speeds positive numbers")
-    recipe = "".join(f" --{flag} {value}" for flag, value, default in (
-        ("datasets", args.datasets, "2"), ("speeds", args.speeds, ""), ("balance", f"{args.balance:g}", "0"),
-        ("foot-weight", f"{args.foot_weight:g}", "0")) if value != default)
+    fields, recipe = _data_fields(args)
+    cfg = recurrent.Config(seed=args.seed, w_foot=args.foot_weight, **fields)
+    if args.foot_weight:
+        recipe += f" --foot-weight {args.foot_weight:g}"
     command = f"motion-style train recurrent --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
         f" --iterations {args.iterations}" if args.iterations is not None else "")
     card = recurrent.train(cfg, out, args.minutes, args.iterations,
@@ -175,13 +200,14 @@ def run_stgcn(args) -> int:
     if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
     out = Path(args.out) if args.out else models_dir()
-    command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}" + (
+    fields, recipe = _data_fields(args)
+    command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
         f" --iterations {args.iterations}" if args.iterations is not None else "") + (
         f" --init-from {args.init_from}" if args.init_from is not None else "") + (
         f" --ds-cap {args.ds_cap:g}" if args.ds_cap is not None else "") + (
         f" --ds-weight {args.ds_weight:g}" if args.ds_weight is not None else "")
     changes = {"ds_cap": args.ds_cap, **({"w_ds": args.ds_weight} if args.ds_weight is not None else {})}
-    card = stgcn.train(stgcn.Config(seed=args.seed, **changes), out, args.minutes,
+    card = stgcn.train(stgcn.Config(seed=args.seed, **fields, **changes), out, args.minutes,
                        args.iterations, args.resume, threads=args.threads, command=command + " --resume",
                        init_from=args.init_from)
     history = card["training"]["history"]

@@ -232,3 +232,49 @@ def bench_report(motion: Motion, model: str | Path = DEFAULT_MODEL, hops: tuple[
         lines.append(f"  hop {h}: p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {worst:.2f} ms, mean {ms.mean():.2f} ms")
         figures["step_ms"][f"hop {h}"] = {"p50": round(p50, 3), "p99": round(p99, 3), "max": round(worst, 3)}
     return "\n".join(lines), figures
+
+
+def enrolment(style: str, out_dir: Path, model: str | Path = DEFAULT_MODEL, clips: int = 4, seed: int = 0,
+              judges: list[Judge] | None = None, root: Path | None = None, progress: bool = True) -> dict:
+    """A style the model does not know, enrolled into a style bank from ``clips`` of its Bandai
+    train takes (distinct contents, chosen with ``seed``), then asked of every dataset-2 test take
+    (one per content and style) and every CMU and Xia neutral clip: how often each judge panel
+    recognises it, and how much the style's probability rose from the source's."""
+    from motion_style_ros.evaluation.harness import held_out_clips
+    from motion_style_ros.evaluation.unseen import _recognition, neutral_clips
+    from motion_style_ros.io.datasets import index_bandai, load_bandai
+    from motion_style_ros.runtime import style_bank
+    from motion_style_ros.runtime.offline import stylizer
+
+    session = WindowedSession(model)
+    if style in session.styles[: len(session.card["styles"])]:
+        raise MotionStyleError(f"{style!r} is a style the model was trained on; enrol one it has not seen")
+    takes = sorted((i for i in index_bandai(root) if i.style == style and i.split == "train"),
+                   key=lambda i: i.name)
+    by_content = {i.content: i for i in takes}
+    if len(by_content) < clips:
+        raise MotionStyleError(f"style {style!r} has {len(by_content)} train contents, fewer than {clips} clips")
+    rng = np.random.default_rng(seed)
+    chosen = [by_content[c] for c in sorted(rng.choice(sorted(by_content), clips, replace=False))]
+    entry = session.enrol([m for _, m in load_bandai(chosen, progress=False)], [i.name for i in chosen])
+    out_dir.mkdir(parents=True, exist_ok=True)
+    bank = out_dir / f"enrolled_{style}.json"
+    style_bank.write(bank, {style: entry}, session.card["name"], session.model_digest)
+    enrolled = stylizer("stgcn", str(model), bank=bank)  # a session per input rate
+    test = held_out_clips(root, progress=progress)
+    one_per_cell = {(i.content, i.style): m for i, m in sorted(test, key=lambda c: c[0].name)}
+    sources = {"bandai2_test": list(one_per_cell.values()),
+               "unseen": [m for _, m in neutral_clips(root)]}
+    judges = judges or []
+    report = {"style": style, "enrolled_from": list(entry.clips), "head": entry.head,
+              "closest_known": entry.probabilities, "bank": str(bank)}
+    for name, motions in sources.items():
+        rows = []
+        for source in motions:
+            before = [judge.judge([source]).probabilities[0] for judge in judges]
+            rows.append(_recognition(judges, before, enrolled(source, style), style))
+        report[name] = {"outputs": len(rows), **{
+            key: float(np.mean([r[f"recognised_{k}"] for r in rows])) if key.startswith("recog")
+            else float(np.median([r[f"target_gain_{k}"] for r in rows]))
+            for k in range(1, len(judges) + 1) for key in (f"recognised_{k}", f"target_gain_median_{k}")}}
+    return report

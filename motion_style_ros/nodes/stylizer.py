@@ -123,6 +123,8 @@ class Stylizer(PlayerNode):
         backend = self.param("backend", "recurrent", f"stylizer backend: {', '.join(BACKENDS)}")
         window = self.param("window", 0, "stgcn: frames per window, a multiple of 4; 0 = the model "
                             "card's", 0, 1024)
+        bank = self.param("style_bank", "", "stgcn: a style bank file of enrolled styles (motion-style "
+                          "style add); '' = the model's own (<model>_styles.json) if there is one")
         hop = self.param("hop", 4, "stgcn: model frames between two windows", 1, 1024)
         lookahead = self.param("lookahead", NODE_SETTINGS["lookahead"], "stgcn: model frames of the "
                                "future each output "
@@ -152,6 +154,9 @@ class Stylizer(PlayerNode):
                                "latency (1/input_fps)")
         if backend not in BACKENDS:
             raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
+        if bank and backend != "stgcn":
+            raise MotionStyleError(f"parameter style_bank needs backend stgcn (style codes); {backend} "
+                                   "has a fixed set of styles")
         if not prefixes or len(set(prefixes)) != len(prefixes):
             raise MotionStyleError(f"parameter performers is {list(prefixes)}; give distinct topic "
                                    "prefixes, e.g. ['alice', 'bob'] (or [''] for one performer)")
@@ -162,7 +167,7 @@ class Stylizer(PlayerNode):
                       follow_seconds=follow or None, foot_lock=foot_lock, pipelined=pipelined)
         if backend == "stgcn":
             sessions = [WindowedSession(model, **common, window=window or None, hop=hop,
-                                        lookahead=lookahead) for _ in prefixes]
+                                        lookahead=lookahead, bank=bank or None) for _ in prefixes]
         else:
             session = RecurrentSession(model, **common)
             # Performers' model frames fall on different input frames (one in input_fps / model

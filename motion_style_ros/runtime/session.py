@@ -117,14 +117,16 @@ class RecurrentSession:
 
     def _setup_stream(self, card: dict, performers: int, input_fps: float | None, blend_seconds: float,
                       gap_seconds: float, follow_seconds: float | None, foot_lock: bool, ground: bool,
-                      pipelined: bool, delay_frames: int = 0, conform: bool = True) -> None:
+                      pipelined: bool, delay_frames: int = 0, conform: bool = True,
+                      extra_styles: tuple[str, ...] = ()) -> None:
         """Everything of the stream that does not depend on the model: rates and latency (plus
         ``delay_frames`` model frames of the model's own, and an input frame when ``pipelined``),
-        controls, feature encoder and decoder, foot locking."""
+        controls (over the card's styles and ``extra_styles``), feature encoder and decoder, foot
+        locking."""
         if not (isinstance(performers, (int, np.integer)) and performers >= 1):
             raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
         self.card = card
-        self.styles: list[str] = list(card["styles"])
+        self.styles: list[str] = [*card["styles"], *extra_styles]
         self.fps = float(card["fps"])
         self.performers = int(performers)
         self.input_fps = self.fps if input_fps is None else _positive(input_fps, "input frame rate")

@@ -26,6 +26,8 @@ differs:
   over :data:`MEAN_SEEDS` fixed seeds, by ``seed_spread`` (StyleGAN's truncation trick, read the
   other way): 1 is the mapping network's code as trained, 0 gives every seed the style's mean
   code, above 1 the seeds differ more, at some cost in how surely the style is recognised.
+- **Style bank.** Styles enrolled from a user's clips (:mod:`motion_style_ros.runtime.style_bank`)
+  come after the model's own in ``styles``, each with its one fixed code: seeds do not move it.
 - **Foot locking.** With ``foot_lock`` (the default), feet the input plants stay planted in the
   output (:mod:`motion_style_ros.core.foot_lock`), judged on the input frame each output frame
   was made from.
@@ -45,6 +47,7 @@ from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
 from motion_style_ros.core.standing import ROOT_MOTION
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime import style_bank
 from motion_style_ros.runtime.controls import unit_interval
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.session import RecurrentSession, _check_card
@@ -92,7 +95,8 @@ class WindowedSession(RecurrentSession):
     frames per window (default: the card's; a multiple of 4); ``hop``: frames between windows;
     ``lookahead``: output delay in model frames (0 to ``window - 1``); ``latent_seed``: every
     performer's seed; ``pipelined``: as for the recurrent session. Until :meth:`set_style`, every
-    performer gets the card's ``neutral_style`` at alpha 1.
+    performer gets the card's ``neutral_style`` at alpha 1. ``bank``: a style bank file (default:
+    the model's own, beside it, if there is one).
     """
 
     def __init__(
@@ -113,6 +117,7 @@ class WindowedSession(RecurrentSession):
         seed_spread: float = 1.0,
         pipelined: bool = False,
         conform: bool = True,
+        bank: str | Path | None = None,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -129,8 +134,17 @@ class WindowedSession(RecurrentSession):
         companions = {k: model_path(str(path.with_name(name))) for k, name in card["files"].items()}
         self.mapping = OnnxModel(companions["mapping"], threads)
         self.style_encoder = OnnxModel(companions["style_encoder"], threads)
+        self.model_digest = style_bank.digest([path, companions["style_encoder"]])
+        known = list(card["styles"])
+        beside = style_bank.path_beside(path)
+        self.bank_path = Path(bank) if bank is not None else beside if beside.exists() else None
+        self.bank = ({} if self.bank_path is None else
+                     style_bank.read(self.bank_path, self.model_digest, int(card["style_dim"]), known))
+        self._known = len(known)
+        self._bank_codes = np.array([e.code for e in self.bank.values()]).reshape(len(self.bank), int(card["style_dim"]))
         self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                           foot_lock, ground, pipelined, delay_frames=self.lookahead, conform=conform)
+                           foot_lock, ground, pipelined, delay_frames=self.lookahead, conform=conform,
+                           extra_styles=tuple(self.bank))
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
         self.seed_spread = _spread(seed_spread)
@@ -169,11 +183,19 @@ class WindowedSession(RecurrentSession):
         encoder's own classifier recognises it. Sets that style as the target; returns it."""
         codes, logits = self.reference_codes(motion)
         k = int(np.argmax(logits)) if style is None else self._controls.style_index(style)
+        head = k if k < self._known else self.styles.index(self.bank[self.styles[k]].head)
         which = self._controls.which(performer)
         self._begin_codes(which)
-        self._codes_to[which, k] = codes[k]
+        self._codes_to[which, k] = codes[head]
         self.set_style(self.styles[k], performer)
         return self.styles[k]
+
+    def enrol(self, clips: list[Motion], names: list[str], head: str | None = None) -> style_bank.Entry:
+        """A bank entry from a few clips of one style (see :mod:`~motion_style_ros.runtime.style_bank`)."""
+        read = [self.reference_codes(m) for m in clips]
+        frames = [round(m.n_frames * self.fps / m.fps) for m in clips]
+        return style_bank.enrol([c for c, _ in read], [x for _, x in read], frames, names,
+                                self.styles[: self._known], head)
 
     def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         """A clip's code under every style's head ``(S, D)`` and the style logits ``(S,)``, or a
@@ -276,13 +298,15 @@ class WindowedSession(RecurrentSession):
     # --- codes --------------------------------------------------------------------------------
 
     def _seed_codes(self, seed: int) -> np.ndarray:
-        """``(S, D)``: every style's code for one seed, at the session's seed spread."""
-        return self._mean_codes + self.seed_spread * (self._mapped(seed)[0] - self._mean_codes)
+        """``(S, D)``: every style's code for one seed, at the session's seed spread (the bank's
+        codes as they are)."""
+        seeded = self._mean_codes + self.seed_spread * (self._mapped(seed)[0] - self._mean_codes)
+        return np.concatenate([seeded, self._bank_codes])
 
     def _mapped(self, *seeds: int) -> np.ndarray:
         """``(K, S, D)``: every style's code for each seed from the mapping network, as trained
         (one run for all of them)."""
-        n, size = len(self.styles), int(self.card["latent_dim"])
+        n, size = self._known, int(self.card["latent_dim"])
         z = np.repeat(np.stack([latent(seed, size) for seed in seeds]), n, axis=0).astype(np.float32)
         style = np.tile(np.eye(n, dtype=np.float32), (len(seeds), 1))
         return self.mapping.run(z=z, style=style)["code"].astype(np.float64).reshape(len(seeds), n, -1)

@@ -25,10 +25,8 @@ from torch import nn
 from tqdm import tqdm
 
 from motion_style_ros.core.features import FEATURE_VERSION, encode, feature_layout
-from motion_style_ros.core.resample import at_speed
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.io.datasets import index_bandai, load_bandai
 from motion_style_ros.models.style_erd import (
     OUT_ROOT,
     ContentNet,
@@ -38,12 +36,12 @@ from motion_style_ros.models.style_erd import (
     StyleERD,
     tiny,
 )
+from motion_style_ros.training.data import NEUTRAL, Clips, Data, load_for, normalisation, recipe, windows
 from motion_style_ros.training.judges import ATTRIBUTION
 
 FPS = 30.0
 NAME = "style_erd"
 OPSET = 17
-NEUTRAL = "normal"
 CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
 
 @dataclass(frozen=True)
@@ -58,6 +56,8 @@ class Config:
     # The shipped model uses neither; the 22-style run of the models-v2 issue used (0.8, 1.25) and 0.5.
     speeds: tuple[float, ...] = ()
     balance: float = 0.0
+    mirror: bool = False  # also every train take mirrored left-right (training.data.load_data)
+    exclude: tuple[str, ...] = ()  # styles left out (to enrol them later through a style bank)
     # generator (see models.style_erd.ErdConfig). Shallower and wider than the paper's 6 + 4 LSTM
     # layers of width 32: on 2 CPU cores the deep stacks had barely started to reconstruct after
     # 300 iterations while this one was within a few centimetres (pos loss 0.08 vs 0.94).
@@ -114,77 +114,6 @@ def tiny_config(**changes) -> Config:
                           batch=4, crops=1, crop_frames=12, dis_widths=(16,), dis_features=4,
                           content_widths=(16,), content_iterations=5, content_batch=4, warmup=10),
                    **changes)
-
-
-# --- data ----------------------------------------------------------------------------------------
-
-
-@dataclass
-class Clips:
-    features: list[np.ndarray]  # (T, F) float32 per take
-    styles: np.ndarray  # index into the model's styles
-    contents: np.ndarray  # index into the content labels
-    weights: np.ndarray | None = None  # per take, relative chance of a frame (None: all alike)
-
-
-@dataclass
-class Data:
-    styles: tuple[str, ...]
-    contents: tuple[str, ...]
-    splits: dict[str, Clips]  # "train", "val"
-
-
-def load_data(datasets: tuple[int, ...] = (2,), progress: bool = True, root: Path | None = None,
-              takes_per_cell: int | None = None, speeds: tuple[float, ...] = (),
-              balance: float = 0.0) -> Data:
-    """Encoded train and val takes with style and content indices (every style of the sets, labels
-    from :func:`motion_style_ros.io.datasets.style_label`). Train takes are added again at each of
-    ``speeds``. ``takes_per_cell`` keeps only the first takes of each split, style and content
-    (tests)."""
-    infos = [i for i in index_bandai(root, datasets=tuple(sorted(datasets))) if i.split in ("train", "val")]
-    if takes_per_cell is not None:
-        seen: dict[tuple[str, str, str], int] = {}
-        kept = []
-        for i in infos:
-            seen[i.split, i.style, i.content] = seen.get((i.split, i.style, i.content), 0) + 1
-            if seen[i.split, i.style, i.content] <= takes_per_cell:
-                kept.append(i)
-        infos = kept
-    styles = tuple(sorted({i.style for i in infos}))
-    contents = tuple(sorted({i.content for i in infos}))
-    if NEUTRAL not in styles:
-        raise MotionStyleError(f"no '{NEUTRAL}' takes among the Bandai data: the neutral branch needs them")
-    loaded = load_bandai(infos, progress=progress)
-    encoded = []
-    for info, m in tqdm(loaded, desc="features", disable=not progress):
-        encoded.append((info, encode(m)))
-        if info.split == "train":
-            encoded += [(info, encode(at_speed(m, v))) for v in speeds]
-    splits = {}
-    for split in ("train", "val"):
-        chosen = [(i, f) for i, f in encoded if i.split == split]
-        style_index = np.array([styles.index(i.style) for i, _ in chosen])
-        frames = np.bincount(style_index, [len(f) for _, f in chosen], len(styles))
-        splits[split] = Clips([f for _, f in chosen], style_index,
-                              np.array([contents.index(i.content) for i, _ in chosen]),
-                              1.0 / np.maximum(frames[style_index], 1.0) ** balance if balance else None)
-    return Data(styles, contents, splits)
-
-
-def windows(clips: Clips, length: int, count: int, rng: np.random.Generator
-            ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """``count`` random ``length``-frame windows (over the frames of the takes long enough, by the
-    takes' weights):
-    features ``(count, length, F)``, style and content indices ``(count,)``."""
-    spans = np.array([max(len(f) - length + 1, 0) for f in clips.features], dtype=float)
-    if spans.sum() == 0:
-        raise MotionStyleError(f"no take has the {length} frames a training window needs")
-    chance = spans if clips.weights is None else spans * clips.weights
-    idx = rng.choice(len(spans), size=count, p=chance / chance.sum())
-    starts = rng.integers(0, spans[idx].astype(int))
-    x = np.stack([clips.features[i][s : s + length] for i, s in zip(idx, starts)])
-    return (torch.from_numpy(x), torch.from_numpy(clips.styles[idx]),
-            torch.from_numpy(clips.contents[idx]))
 
 
 # --- kinematics and losses -----------------------------------------------------------------------
@@ -300,12 +229,6 @@ def _onehot(index: torch.Tensor, n: int, repeat: int = 1) -> torch.Tensor:
     return F.one_hot(index, n).float().repeat_interleave(repeat, dim=0)
 
 
-def _normalisation(clips: Clips, floor: float) -> tuple[np.ndarray, np.ndarray]:
-    """Train-frame mean and std per feature (std floored: near-constant features stay small)."""
-    frames = np.concatenate(clips.features)
-    return frames.mean(axis=0), np.maximum(frames.std(axis=0), floor)
-
-
 def _content_settings(cfg: Config) -> dict:
     names = ("seed", "datasets", "crops", "crop_frames", "std_floor", "content_widths",
              "content_iterations", "content_batch", "content_lr")
@@ -360,7 +283,7 @@ class Trainer:
                  progress: bool = True) -> None:
         self.cfg, self.data, self.progress = cfg, data, progress
         self.dir = checkpoints / f"recurrent_{cfg.seed}"
-        mean, std = _normalisation(data.splits["train"], cfg.std_floor)
+        mean, std = normalisation(data.splits["train"], cfg.std_floor)
         self.losses = Losses(cfg, mean, std)
         self.content, self.content_info = content_network(cfg, data, self.losses,
                                                           self.dir / "content_net.pt", progress)
@@ -579,19 +502,14 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     the model card."""
     torch.set_num_threads(threads)
     started = time.perf_counter()
-    data = data or load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance)
+    data = data or load_for(cfg, progress)
     trainer = Trainer.started(cfg, data, checkpoints, progress, resume)
     setup_s = time.perf_counter() - started
     trainer.run(minutes, iterations)
     onnx_path = out_dir / f"{NAME}.onnx"
     probe = max(data.splits["val"].features, key=len)
     info = {
-        "data": f"Bandai Namco Research Motion Dataset(s) {', '.join(map(str, cfg.datasets))}: 'train' "
-                "takes (val takes for the val losses; test takes never seen)",
-        "styles": ("every style of the sets; dataset-1 styles named like a dataset-2 style are "
-                   "their own styles with the suffix -d1 (motion_style_ros.io.datasets.style_label)"),
-        "augmentation": (f"every train take also at speeds {list(cfg.speeds)}" if cfg.speeds else "none")
-                        + (f"; windows weighted frames / style_frames ** {cfg.balance}" if cfg.balance else ""),
+        **recipe(cfg),
         "clips": {k: len(c.features) for k, c in data.splits.items()},
         "contents": list(data.contents),
         "command": command,

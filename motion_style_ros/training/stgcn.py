@@ -38,18 +38,8 @@ from motion_style_ros.models.stgcn import (
     pick,
 )
 from motion_style_ros.training.judges import ATTRIBUTION
-from motion_style_ros.training.recurrent import (
-    CHECKPOINTS,
-    FPS,
-    NEUTRAL,
-    OPSET,
-    Clips,
-    Data,
-    Losses,
-    _normalisation,
-    load_data,
-    windows,
-)
+from motion_style_ros.training.data import NEUTRAL, Clips, Data, load_for, normalisation, recipe, windows
+from motion_style_ros.training.recurrent import CHECKPOINTS, FPS, OPSET, Losses
 from motion_style_ros.training.recurrent import (
     Trainer as RecurrentTrainer,
 )
@@ -64,7 +54,12 @@ class Config:
     """Everything that shapes the result; a checkpoint resumes only under the same config."""
 
     seed: int = 0
+    # data (training.data.load_data): the shipped v1 model is dataset 2 with no augmentation
     datasets: tuple[int, ...] = (2,)
+    speeds: tuple[float, ...] = ()
+    balance: float = 0.0
+    mirror: bool = False
+    exclude: tuple[str, ...] = ()
     # networks (models.stgcn.StgcnConfig); the paper's widths are (64, 128, 256)
     window: int = 48
     widths: tuple[int, int, int] = (32, 64, 128)
@@ -155,7 +150,7 @@ class Trainer(RecurrentTrainer):
                  progress: bool = True) -> None:
         self.cfg, self.data, self.progress = cfg, data, progress
         self.dir = checkpoints / f"{NAME}_{cfg.seed}"
-        mean, std = _normalisation(data.splits["train"], cfg.std_floor)
+        mean, std = normalisation(data.splits["train"], cfg.std_floor)
         self.losses = Losses(cfg, mean, std)
         net = cfg.networks(data.styles)
         torch.manual_seed(cfg.seed)
@@ -460,7 +455,7 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     this config), export the weight averages to ``out_dir``; returns the card."""
     torch.set_num_threads(threads)
     started = time.perf_counter()
-    data = data or load_data(cfg.datasets, progress)
+    data = data or load_for(cfg, progress)
     trainer = Trainer.started(cfg, data, checkpoints, progress, resume)
     if init_from is not None and trainer.state["iteration"] == 0:
         trainer.initialise(checkpoints / f"{NAME}_{init_from}" / "checkpoint.pt")
@@ -469,8 +464,7 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
     probe = max(data.splits["val"].features, key=len)
     info = {
-        "data": f"Bandai Namco Research Motion Dataset(s) {', '.join(map(str, cfg.datasets))}: 'train' "
-                "takes (val takes for the val figures; test takes never seen)",
+        **recipe(cfg),
         "clips": {k: len(c.features) for k, c in data.splits.items()},
         "command": command,
         "seed": cfg.seed,

@@ -1,0 +1,70 @@
+"""``motion-style style``: enrol a style of your own from a few clips into a model's style bank."""
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "style", help="enrol, list and remove your own styles (stgcn style bank)",
+        description="A style bank holds styles enrolled from a few clips for a model that takes "
+                    "style codes (the stgcn backend), without retraining: the style encoder's code "
+                    "of the clips, averaged. It is a JSON file beside the model (stgcn_styles.json) "
+                    "that the sessions and the stylizer node read, so target_style accepts the new "
+                    "name. Clips are BVH files of any humanoid rig the package retargets.",
+    )
+    actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    add = actions.add_parser("add", help="enrol a style from clips of it",
+                             description="Enrol NAME from the clips (3-5 clips of a few seconds each "
+                                         "work; every clip must show the style).")
+    add.add_argument("name", metavar="NAME", help="the new style's name (lowercase letters, digits, - and _)")
+    add.add_argument("clips", metavar="CLIP.bvh", nargs="+", help="clips of the style")
+    add.add_argument("--head", default=None, metavar="STYLE",
+                     help="read the codes under this known style's head (default: the style the "
+                          "clips are closest to, by the encoder's classifier)")
+    add.add_argument("--replace", action="store_true", help="replace NAME if the bank has it")
+    listing = actions.add_parser("list", help="the styles of a model and its bank")
+    remove = actions.add_parser("remove", help="remove an enrolled style")
+    remove.add_argument("name", metavar="NAME")
+    for sub in (add, listing, remove):
+        sub.add_argument("--model", default="stgcn.onnx",
+                         help="the model: a shipped file name or a path (default: stgcn.onnx)")
+        sub.add_argument("--bank", default=None, metavar="FILE",
+                         help="the style bank file (default: <model>_styles.json beside the model)")
+        sub.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime import style_bank
+    from motion_style_ros.runtime.offline import canonical_clip
+    from motion_style_ros.runtime.onnx_model import model_path
+    from motion_style_ros.runtime.windowed import WindowedSession
+
+    bank = Path(args.bank) if args.bank else style_bank.path_beside(model_path(args.model))
+    session = WindowedSession(args.model, lookahead=0, bank=bank if bank.exists() else None)  # its encoder only
+    known = session.styles[: len(session.card["styles"])]
+    entries = dict(session.bank)
+    if args.action == "list":
+        print(f"{session.card['name']}: {', '.join(known)}")
+        for name, e in entries.items():
+            print(f"{name}: {len(e.clips)} clips, {e.frames} frames, read under {e.head!r} "
+                  f"(closest: {', '.join(f'{k} {v:.2f}' for k, v in e.probabilities.items())})")
+        if not entries:
+            print(f"no enrolled styles ({bank})")
+        return 0
+    if args.action == "remove":
+        if args.name not in entries:
+            raise MotionStyleError(f"{bank} has no style {args.name!r}"
+                                   + (f"; it has {', '.join(entries)}" if entries else ""))
+        del entries[args.name]
+    else:
+        name = style_bank.check_name(args.name, known)
+        if name in entries and not args.replace:
+            raise MotionStyleError(f"{bank} has a style {name!r} already; --replace to enrol it again")
+        clips = [canonical_clip(c) for c in args.clips]
+        entries[name] = entry = session.enrol(clips, [Path(c).name for c in args.clips], args.head)
+        print(f"{name}: {len(clips)} clips, {entry.frames} frames at {session.fps:g} fps, read under "
+              f"{entry.head!r} (closest: {', '.join(f'{k} {v:.2f}' for k, v in entry.probabilities.items())})")
+    style_bank.write(bank, entries, session.card["name"], session.model_digest)
+    print(f"wrote {bank}: {len(entries)} enrolled styles")
+    return 0

@@ -1,0 +1,136 @@
+"""Training data for every trainer: Bandai takes as encoded feature clips with style and content
+indices, their augmentation (speeds, mirroring), windows drawn from them, and the feature
+normalisation. Which takes and augmentations a run uses is its config's ``datasets``, ``speeds``,
+``balance``, ``mirror`` and ``exclude`` fields (:func:`load_for`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from motion_style_ros.core.features import encode
+from motion_style_ros.core.mirror import mirror as mirror_motion
+from motion_style_ros.core.resample import at_speed
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io.datasets import index_bandai, load_bandai
+
+NEUTRAL = "normal"
+
+
+@dataclass
+class Clips:
+    features: list[np.ndarray]  # (T, F) float32 per take
+    styles: np.ndarray  # index into the model's styles
+    contents: np.ndarray  # index into the content labels
+    weights: np.ndarray | None = None  # per take, relative chance of a frame (None: all alike)
+
+
+@dataclass
+class Data:
+    styles: tuple[str, ...]
+    contents: tuple[str, ...]
+    splits: dict[str, Clips]  # "train", "val"
+
+
+def load_data(datasets: tuple[int, ...] = (2,), progress: bool = True, root: Path | None = None,
+              takes_per_cell: int | None = None, speeds: tuple[float, ...] = (),
+              balance: float = 0.0, mirror: bool = False, exclude: tuple[str, ...] = ()) -> Data:
+    """Encoded train and val takes with style and content indices (every style of the sets but
+    ``exclude``, labels from :func:`motion_style_ros.io.datasets.style_label`). Train takes are
+    added again at each of ``speeds`` and, with ``mirror``, mirrored left-right (at each speed too;
+    a left content becomes its right mate). ``takes_per_cell`` keeps only the first takes of each
+    split, style and content (tests)."""
+    indexed = [i for i in index_bandai(root, datasets=tuple(sorted(datasets))) if i.split in ("train", "val")]
+    unknown = sorted(set(exclude) - {i.style for i in indexed})
+    if unknown or NEUTRAL in exclude:
+        raise MotionStyleError(f"cannot leave out {', '.join(unknown) or NEUTRAL}: the styles to leave out "
+                               f"are among {', '.join(sorted({i.style for i in indexed} - {NEUTRAL}))}")
+    infos = [i for i in indexed if i.style not in exclude]
+    if takes_per_cell is not None:
+        seen: dict[tuple[str, str, str], int] = {}
+        kept = []
+        for i in infos:
+            seen[i.split, i.style, i.content] = seen.get((i.split, i.style, i.content), 0) + 1
+            if seen[i.split, i.style, i.content] <= takes_per_cell:
+                kept.append(i)
+        infos = kept
+    styles = tuple(sorted({i.style for i in infos}))
+    contents = tuple(sorted({i.content for i in infos}))
+    if NEUTRAL not in styles:
+        raise MotionStyleError(f"no '{NEUTRAL}' takes among the Bandai data: the neutral branch needs them")
+    loaded = load_bandai(infos, progress=progress)
+    encoded = []
+    for info, m in tqdm(loaded, desc="features", disable=not progress):
+        encoded.append((info, encode(m)))
+        if info.split != "train":
+            continue
+        variants = [(info, at_speed(m, v)) for v in speeds]
+        if mirror:
+            mirrored = replace(info, content=_mirrored_content(info.content, contents))
+            variants += [(mirrored, mirror_motion(v)) for _, v in [(info, m), *variants]]
+        encoded += [(i, encode(v)) for i, v in variants]
+    splits = {}
+    for split in ("train", "val"):
+        chosen = [(i, f) for i, f in encoded if i.split == split]
+        style_index = np.array([styles.index(i.style) for i, _ in chosen])
+        frames = np.bincount(style_index, [len(f) for _, f in chosen], len(styles))
+        splits[split] = Clips([f for _, f in chosen], style_index,
+                              np.array([contents.index(i.content) for i, _ in chosen]),
+                              1.0 / np.maximum(frames[style_index], 1.0) ** balance if balance else None)
+    return Data(styles, contents, splits)
+
+
+def _mirrored_content(content: str, contents: tuple[str, ...]) -> str:
+    """The content a mirrored take shows: ``walk-turn-left`` -> ``walk-turn-right``."""
+    words = content.split("-")
+    swapped = "-".join({"left": "right", "right": "left"}.get(w, w) for w in words)
+    return swapped if swapped in contents else content
+
+
+def windows(clips: Clips, length: int, count: int, rng: np.random.Generator
+            ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``count`` random ``length``-frame windows (over the frames of the takes long enough, by the
+    takes' weights):
+    features ``(count, length, F)``, style and content indices ``(count,)``."""
+    spans = np.array([max(len(f) - length + 1, 0) for f in clips.features], dtype=float)
+    if spans.sum() == 0:
+        raise MotionStyleError(f"no take has the {length} frames a training window needs")
+    chance = spans if clips.weights is None else spans * clips.weights
+    idx = rng.choice(len(spans), size=count, p=chance / chance.sum())
+    starts = rng.integers(0, spans[idx].astype(int))
+    x = np.stack([clips.features[i][s : s + length] for i, s in zip(idx, starts)])
+    return (torch.from_numpy(x), torch.from_numpy(clips.styles[idx]),
+            torch.from_numpy(clips.contents[idx]))
+
+
+def load_for(cfg, progress: bool = True) -> Data:
+    """:func:`load_data` with a trainer config's data fields."""
+    return load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance, mirror=cfg.mirror,
+                     exclude=cfg.exclude)
+
+
+def recipe(cfg) -> dict:
+    """The card's account of a config's data fields."""
+    aug = [f"every train take also at speeds {list(cfg.speeds)}"] if cfg.speeds else []
+    if cfg.mirror:
+        aug.append("every train take (and speed copy) also mirrored left-right, left/right contents swapped")
+    if cfg.balance:
+        aug.append(f"windows weighted frames / style_frames ** {cfg.balance}")
+    return {
+        "data": f"Bandai Namco Research Motion Dataset(s) {', '.join(map(str, cfg.datasets))}: 'train' "
+                "takes (val takes for the val figures; test takes never seen)",
+        "styles": ("every style of the sets" + (f" but {', '.join(cfg.exclude)} (left out)" if cfg.exclude else "")
+                   + "; dataset-1 styles named like a dataset-2 style are their own styles with the "
+                   "suffix -d1 (motion_style_ros.io.datasets.style_label)"),
+        "augmentation": "; ".join(aug) or "none",
+    }
+
+
+def normalisation(clips: Clips, floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """Train-frame mean and std per feature (std floored: near-constant features stay small)."""
+    frames = np.concatenate(clips.features)
+    return frames.mean(axis=0), np.maximum(frames.std(axis=0), floor)
