@@ -6,6 +6,8 @@ changes parameters through the real ``~/set_parameters`` service, calls ``~/rese
 every output against an offline :class:`RecurrentSession` fed the same frames and stamps.
 """
 
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -320,8 +322,13 @@ def test_reset_starts_every_stream_afresh(rig, recorded, model):
 def test_bad_input_is_dropped_and_counted_and_the_next_good_frame_is_stylized(rig, recorded, model):
     names = LAYOUT.names
 
+    roots = np.array([v[:3] for _, v in recorded])
+    lap = roots[-1] - roots[0] + (roots[1] - roots[0])  # the walk goes on from where the clip ends
+
     def good(k, shift=0):
-        return T0 + k * PERIOD + shift, recorded[k % FRAMES][1]
+        values = recorded[k % FRAMES][1].copy()
+        values[:3] += (k // FRAMES) * lap
+        return T0 + k * PERIOD + shift, values
 
     sent = [good(k) for k in range(20)]
     rig.send("p3", sent)
@@ -337,34 +344,52 @@ def test_bad_input_is_dropped_and_counted_and_the_next_good_frame_is_stylized(ri
         message(stamp, names[1:], values[1:]),  # a missing name
         message(sent[-1][0], names, values),  # the previous frame's stamp again
         message(sent[10][0], names, values),  # a stamp from the past
+        message(stamp + 86_400 * 10**9, names, values),  # a day ahead
+        message(stamp, names, np.full_like(values, 1e30)),  # every value huge
+        message(stamp, names, np.concatenate([np.full(3, 1e30), values[3:]])),  # the root huge
+        message(stamp, names, np.concatenate([values[:3] + 5.0, values[3:]])),  # 8.7 m in 33 ms
     ]
     for msg in bad:
         rig.inputs["p3"].publish(msg)
     sent.append((stamp, values))
-    rig.send("p3", sent[-1:])
+    rig.send("p3", sent[-1:])  # the next good frame is stylized
 
     burst = [good(k) for k in range(21, 1021)]  # published as fast as the test can
     rig.send("p3", burst)
-    gap = [good(k, shift=5 * 10**9) for k in range(1021, 1025)]  # 5 s without frames, by stamps
+    gap = [good(k, shift=8 * 10**8) for k in range(1021, 1025)]  # 0.8 s without frames, by stamps
+    started = time.time_ns()
     rig.send("p3", gap)
     before = time.time_ns()
-    rig.send("p3", [(0, recorded[0][1])])  # unstamped: stamped with the node's clock
+    unstamped = good(1025)[1]
+    rig.send("p3", [(0, unstamped)])  # unstamped: on the stream's clock, by its arrival
     after = time.time_ns()
     sent += burst + gap
 
     got = rig.states["p3"]
     assert stamps(got[:-1]).tolist() == [s for s, _ in sent]
-    now = int(stamps(got[-1:])[0])
-    assert before <= now <= after
-    expected = offline(model, sent + [(now, recorded[0][1])], performer=2)
+    taken = int(stamps(got[-1:])[0])
+    assert 0 < taken - sent[-1][0] <= after - started  # the receipt time since the last gap frame
+    expected = offline(model, sent + [(taken, unstamped)], performer=2)
     assert difference(positions(got), [e for e, _, _ in expected]) < 1e-5
 
     counts = rig.status("p3", frames_in=len(sent) + len(bad) + 1)
     assert {k: int(v) for k, v in counts.items() if k.startswith("dropped")} == {
-        "dropped": 7, "dropped_mismatched_lengths": 1, "dropped_non_finite": 2,
+        "dropped": 11, "dropped_mismatched_lengths": 1, "dropped_non_finite": 2,
         "dropped_bad_names": 2, "dropped_duplicate_stamp": 1, "dropped_out_of_order": 1,
-        "dropped_invalid_frame": 0}
+        "dropped_future_stamp": 0, "dropped_stamp_jump": 1, "dropped_implausible_angle": 1,
+        "dropped_implausible_root": 1, "dropped_implausible_speed": 1, "dropped_invalid_frame": 0}
+    # the 0.8 s by stamps (24 frames at 30 Hz), and the wait before the unstamped frame if it took
+    # more than 1.5 frame periods
+    assert int(counts["gaps"]) in (1, 2) and int(counts["frames_missing"]) >= 24
+    assert float(counts["longest_gap_s"]) >= 0.8
+    # a stamped frame right after the unstamped one, its stamp behind the one the unstamped frame
+    # was taken at: stylized, not dropped as out of order
     assert int(counts["frames_out"]) == len(got)
+    lagging, published = sent[-1][0] + 1000, len(got)
+    rig.send("p3", [(lagging, good(1026)[1])])
+    assert int(stamps(rig.states["p3"][-1:])[0]) == lagging
+    after = rig.status("p3", frames_in=len(sent) + len(bad) + 2)
+    assert int(after["dropped"]) == 11 and int(after["frames_out"]) == published + 1
     assert float(counts["latency_p99_ms"]) >= float(counts["latency_p50_ms"]) > 0
     assert counts["model"] == str(model) and counts["backend"] == "recurrent"
     assert rig.proc.poll() is None
@@ -383,3 +408,28 @@ def test_bad_start_parameters_stop_the_node_with_one_line(start, model, params, 
     assert proc.wait(TIMEOUT) == 2
     err = proc.stderr.read().strip().splitlines()
     assert len(err) == 1 and "ERROR" in err[0] and expected in err[0], err
+
+
+@pytest.mark.parametrize("case, expected", [
+    ("params_missing", "Couldn't parse params file"),
+    ("params_not_yaml", "Couldn't parse params file"),
+    ("override_without_value", "Couldn't parse parameter override rule: '-p alpha'"),
+    ("layout_not_text", "not a text file (a layout is YAML)"),
+    ("card_not_text", "not a text file (a model card is JSON)"),
+])
+def test_every_start_up_error_is_one_line_and_exit_2(ros_env, model, tmp_path, case, expected):
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"\x89PNG\r\n\x1a\n\x00\xff\xfe{[")
+    card_model = tmp_path / "style_erd.onnx"
+    card_model.write_bytes(model.read_bytes())
+    card_model.with_suffix(".json").write_bytes(b"\x00\xff\xfe\x80")
+    args = {"params_missing": ["--params-file", str(tmp_path / "nope.yaml")],
+            "params_not_yaml": ["--params-file", str(binary)],
+            "override_without_value": ["-p", "alpha"],
+            "layout_not_text": ["-p", f"model:={model}", "-p", f"layout:={binary}"],
+            "card_not_text": ["-p", f"model:={card_model}"]}[case]
+    done = subprocess.run([sys.executable, "-m", "motion_style_ros.nodes.stylizer", "--ros-args", *args],
+                          env=ros_env, capture_output=True, text=True, timeout=TIMEOUT)
+    err = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(err) == 1 and expected in err[0], done.stderr
+    assert "Traceback" not in done.stderr + done.stdout

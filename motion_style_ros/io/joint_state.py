@@ -190,7 +190,9 @@ class JointStateLayout:
             return MotionStyleError(f"{path}: {problem}")
 
         try:
-            data = YAML(typ="safe").load(path.read_text())
+            data = YAML(typ="safe").load(path.read_text(encoding="utf-8"))
+        except UnicodeDecodeError:
+            raise bad("not a text file (a layout is YAML)") from None
         except OSError as exc:
             raise bad(exc.strerror or str(exc)) from None
         except YAMLError as exc:
@@ -260,6 +262,14 @@ class JointStateLayout:
         dst = np.array([self._by_name[key[i]] for i in src], dtype=np.intp)
         self._cached = (key, src, dst)
         return src, dst
+
+    def angles(self, names: Sequence[str], positions: np.ndarray) -> tuple[np.ndarray, list[str]]:
+        """The message's angle channels (radians, after scale and offset) with their names, for
+        plausibility checks; names as for :meth:`decode`."""
+        src, dst = self._permutation(names)
+        mine = self.angular[dst]
+        values = (np.asarray(positions, dtype=np.float64)[src[mine]] - self._offset[dst[mine]]) / self._scale[dst[mine]]
+        return values, [names[i] for i in src[mine]]
 
     def decode(self, names: Sequence[str],
                positions: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:

@@ -7,6 +7,10 @@ parameter) logs one error line and exits with status 2, and Ctrl-C ends it clean
 from __future__ import annotations
 
 import gc
+import os
+import re
+import sys
+import tempfile
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -14,6 +18,7 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -21,6 +26,7 @@ from sensor_msgs.msg import JointState
 
 from motion_style_ros.errors import MotionStyleError
 
+RCLError = rclpy_implementation.RCLError
 RELIABILITY = {"best_effort": ReliabilityPolicy.BEST_EFFORT, "reliable": ReliabilityPolicy.RELIABLE}
 
 
@@ -65,10 +71,35 @@ def joint_state(names: Sequence[str], positions: np.ndarray, stamp, frame_id: st
     return msg
 
 
+def _init(args) -> None:
+    """``rclpy.init``; when it fails, rcl's own log line on stderr ("Failed to parse global
+    arguments") is held back, so that the error it raises is the one line the user sees."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            rclpy.init(args=args)
+        except RCLError:
+            raise
+        else:
+            held.seek(0)
+            os.write(saved, held.read())  # a successful init's output, as it would have been
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
 def run(make_node: Callable[[], PlayerNode], name: str, args=None) -> int:
     """Init, build the node (``name`` is its default node name, for the log before it exists), spin
-    until it is done or interrupted; 2 when it cannot start."""
-    rclpy.init(args=args)
+    until it is done or interrupted; 2 when it cannot start (bad ROS arguments or parameter files
+    included: rclpy.init's error, without its C source locations)."""
+    try:
+        _init(args)
+    except RCLError as exc:
+        message = re.sub(r",? at /\S+:\d+", "", " ".join(str(exc).split()))
+        rclpy.logging.get_logger(name).error(f"cannot start: {message}")
+        return 2
     node = None
     try:
         node = make_node()
@@ -78,7 +109,7 @@ def run(make_node: Callable[[], PlayerNode], name: str, args=None) -> int:
         gc.collect()
         gc.freeze()
         rclpy.spin_until_future_complete(node, node.done)
-    except (MotionStyleError, ParameterException) as exc:
+    except (MotionStyleError, ParameterException, UnicodeDecodeError) as exc:
         message = " ".join(str(exc).split())
         (node.get_logger() if node else rclpy.logging.get_logger(name)).error(message)
         return 2

@@ -34,14 +34,13 @@ from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.nodes import PlayerNode, joint_state, run
+from motion_style_ros.runtime.intake import DROP_REASONS, RESTART_REASONS, Bounds, Dropped, Intake
 from motion_style_ros.runtime.offline import NODE_SETTINGS, canonical_clip, default_model
 from motion_style_ros.runtime.session import RecurrentSession, describe_calibration
 from motion_style_ros.runtime.windowed import MAX_SPREAD, WindowedSession
 
 NAME = "stylizer"
 BACKENDS = ("recurrent", "stgcn")  # Style-ERD frame by frame; ST-GCN windows blended by overlap-add
-DROP_REASONS = ("mismatched_lengths", "non_finite", "bad_names", "duplicate_stamp", "out_of_order",
-                "invalid_frame")
 # Parameters that change live, with their types (checked by the node: rclpy's own message would
 # name the types by number).
 DYNAMIC = {"target_style": str, "alpha": float, "mix_style": str, "mix_weight": float,
@@ -53,19 +52,11 @@ LATENCY_SECONDS = 5.0  # the latency percentiles are over the frames published i
 TWO_PI = 2.0 * np.pi
 
 
-class Dropped(Exception):
-    """A message that cannot be stylized: ``reason`` is one of DROP_REASONS."""
-
-    def __init__(self, reason: str, detail: str) -> None:
-        super().__init__(detail)
-        self.reason = reason
-
-
 class Performer:
     """One performer's topics, session, counters and what its outputs continue from."""
 
     def __init__(self, node: Stylizer, prefix: str, session: RecurrentSession, qos: QoSProfile,
-                 markers: bool) -> None:
+                 markers: bool, bounds: Bounds) -> None:
         self.prefix = prefix
         self.session = session
         try:
@@ -79,8 +70,9 @@ class Performer:
         except InvalidTopicNameException as exc:
             raise MotionStyleError(f"parameter performers: {exc}") from None
         self.input = node.resolve_topic_name(self.topic("joint_states"))
-        self.counts = dict.fromkeys(["frames_in", "frames_out", *(f"dropped_{r}" for r in DROP_REASONS)],
-                                    0)
+        self.counts = dict.fromkeys(["frames_in", "frames_out", *(f"dropped_{r}" for r in DROP_REASONS),
+                                     *(f"restarted_{r}" for r in RESTART_REASONS)], 0)
+        self.intake = Intake(bounds, 1.0 / session.input_fps)
         # (publish time, latency from DDS receipt to publication), both ns
         self.latencies: deque[tuple[int, int]] = deque()
         self.reported_drops = 0
@@ -99,7 +91,7 @@ class Performer:
 
     def clear(self) -> None:
         """Forget the stream: the next frame may have any stamp and starts a new trajectory."""
-        self.last_stamp_ns: int | None = None
+        self.intake.clear()
         self.chunk: list[tuple[int, np.ndarray]] = []  # (stamp ns, unwrapped positions)
         self.chunk_frame_id = ""
         self.previous: np.ndarray | None = None  # the last trajectory point, to unwrap against
@@ -206,7 +198,22 @@ class Stylizer(PlayerNode):
         for key, value in self.settings.items():
             if reason := self._problem(key, value):
                 raise MotionStyleError(f"parameter {key}: {reason}")
-        self.performers = [Performer(self, prefix, s, qos, publish_markers)
+        defaults = Bounds()
+        bounds = Bounds(
+            max_stamp_jump=self.param("max_stamp_jump", defaults.max_stamp_jump, "s a frame's stamp may run "
+                                      "ahead of the time since the previous frame arrived (and a first "
+                                      "frame ahead of its arrival); more is dropped", 1e-3, 1e6),
+            restart_seconds=self.param("restart_seconds", defaults.restart_seconds, "s of frames on a new "
+                                       "clock or at a new place (clock reset, teleport) after which the "
+                                       "stream restarts on them by itself", 1e-3, 600.0),
+            max_root_distance=self.param("max_root_distance", defaults.max_root_distance, "m from the "
+                                         "origin (each axis) beyond which a frame's root is dropped",
+                                         1e-3, 1e9),
+            max_root_speed=self.param("max_root_speed", defaults.max_root_speed, "m/s the root may move "
+                                      "between two frames; faster is dropped", 1e-3, 1e6),
+            max_angle=self.param("max_angle", defaults.max_angle, "rad beyond which an angle is "
+                                 "dropped as no rotation", 1.0, 1e9))
+        self.performers = [Performer(self, prefix, s, qos, publish_markers, bounds)
                            for prefix, s in zip(prefixes, sessions)]
         self._reference = None  # the clip of the reference parameter, once read
         self._apply(self.settings)
@@ -288,18 +295,20 @@ class Stylizer(PlayerNode):
 
     def on_state(self, p: Performer, msg: JointState, info: MessageInfo) -> None:
         p.counts["frames_in"] += 1
-        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        if stamp_ns == 0:  # unstamped: the frame is taken as of now
-            stamp_ns = self.get_clock().now().nanoseconds
-            msg.header.stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+        own_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         try:
-            positions = self._check(p, msg, stamp_ns)
+            positions = p.intake.check_values(msg.name, msg.position)
             try:
+                p.intake.check_angles(*self.layout.angles(msg.name, positions))
                 rotations, root = self.layout.decode(msg.name, positions)
             except MotionStyleError as exc:
                 raise Dropped("bad_names", str(exc)) from None
+            frame = p.intake.admit(own_ns, info["received_timestamp"], root)
+            if frame.restart:
+                self._restart(p, "new_timeline", "its frames agree on a new clock or place for "
+                              f"{p.intake.bounds.restart_seconds:g} s")
             try:
-                rotations, root = p.session.step(rotations, root, stamp_seconds(msg.header.stamp))
+                rotations, root = p.session.step(rotations, root, ns_seconds(frame.stamp_ns))
             except MotionStyleError as exc:
                 raise Dropped("invalid_frame", str(exc)) from None
         except Dropped as drop:
@@ -307,36 +316,36 @@ class Stylizer(PlayerNode):
             what = drop.reason.replace("_", " ")
             self._warn(drop.reason, f"{p.input}: dropped a JointState ({what}): {drop}")
             return
-        p.last_stamp_ns = stamp_ns
+        if not (np.isfinite(rotations).all() and np.isfinite(root).all()):
+            self._restart(p, "non_finite_output", "the model's output was not finite")
+            return
+        p.intake.commit(frame, own_ns)
+        stamp = msg.header.stamp if own_ns else Time(sec=frame.stamp_ns // 1_000_000_000,
+                                                      nanosec=frame.stamp_ns % 1_000_000_000)
         self._use_names(p, msg.name)
         out = positions.copy()  # names the layout ignores or passes through: as they came, in step
         if p.extra.size:
-            p.delay.push(stamp_ns, positions[p.extra])
-            out[p.extra] = p.delay.at(stamp_ns - p.latency_ns)
+            p.delay.push(frame.stamp_ns, positions[p.extra])
+            out[p.extra] = p.delay.at(frame.stamp_ns - p.latency_ns)
         out[p.slots] = self.layout.encode(rotations, root)
         frame_id = self.settings["frame_id"] or msg.header.frame_id
-        p.state_out.publish(joint_state(p.names, out, msg.header.stamp, frame_id))
+        p.state_out.publish(joint_state(p.names, out, stamp, frame_id))
         now = time.time_ns()
         p.latencies.append((now, now - info["received_timestamp"]))
         p.counts["frames_out"] += 1
-        self._add_point(p, stamp_ns, out, frame_id)
+        self._add_point(p, frame.stamp_ns, out, frame_id)
         if p.markers_out is not None:
-            p.markers_out.publish(self._markers(p, rotations, root, msg.header.stamp))
+            p.markers_out.publish(self._markers(p, rotations, root, stamp))
         p.session.catch_up()  # pipelined: the model frames of this input, now that it is sent on
 
-    def _check(self, p: Performer, msg: JointState, stamp_ns: int) -> np.ndarray:
-        """The message's positions, or Dropped; names are checked by the layout's decode."""
-        positions = np.asarray(msg.position, dtype=np.float64)
-        if len(msg.name) != len(positions):
-            raise Dropped("mismatched_lengths", f"{len(msg.name)} names but {len(positions)} positions")
-        if not np.isfinite(positions).all():
-            bad = [msg.name[i] for i in np.flatnonzero(~np.isfinite(positions))[:5]]
-            raise Dropped("non_finite", f"NaN or infinite positions for {bad}")
-        if p.last_stamp_ns is not None and stamp_ns <= p.last_stamp_ns:
-            reason = "duplicate_stamp" if stamp_ns == p.last_stamp_ns else "out_of_order"
-            raise Dropped(reason, f"stamp {seconds(stamp_ns)} s is not after the previous frame's "
-                          f"{seconds(p.last_stamp_ns)} s")
-        return positions
+    def _restart(self, p: Performer, reason: str, why: str) -> None:
+        """Start the performer's stream afresh (its rig measurements kept), counted by reason."""
+        self._flush(p)
+        p.session.reset()
+        p.session.restart()
+        p.clear()
+        p.counts[f"restarted_{reason}"] += 1
+        self.get_logger().warning(f"{p.input}: stream restarted ({reason.replace('_', ' ')}): {why}")
 
     def _use_names(self, p: Performer, names) -> None:
         """Where the layout's names sit in this message (worked out again when they change); a
@@ -437,7 +446,9 @@ class Stylizer(PlayerNode):
             (self.get_logger().warn if unmeasured else self.get_logger().info)(
                 f"{p.input}: {describe_calibration(calibration)}")
         p.calibration_state = calibration["state"]
-        values = {**p.counts, "dropped": dropped, "latency_p50_ms": f"{p50:.3f}",
+        values = {**p.counts, "dropped": dropped, "gaps": p.intake.gaps,
+                  "frames_missing": p.intake.frames_missing, "longest_gap_s": f"{p.intake.longest_gap_s:.3f}",
+                  "latency_p50_ms": f"{p50:.3f}",
                   "latency_p99_ms": f"{p99:.3f}", "output_latency_ms": f"{p.latency_ns * 1e-6:.3f}",
                   "model": str(p.session.model.path),
                   "backend": self.backend, "input": p.input,
@@ -454,9 +465,14 @@ class Stylizer(PlayerNode):
         return status
 
 
+def ns_seconds(ns: int) -> float:
+    """A stamp in nanoseconds as the session's float seconds (offline replays convert stamps the
+    same way: :func:`stamp_seconds`)."""
+    return ns // 1_000_000_000 + (ns % 1_000_000_000) * 1e-9
+
+
 def stamp_seconds(stamp: Time) -> float:
-    """A header stamp as the session's float seconds (offline replays convert stamps the same way)."""
-    return stamp.sec + stamp.nanosec * 1e-9
+    return ns_seconds(stamp.sec * 1_000_000_000 + stamp.nanosec)
 
 
 def seconds(ns: int) -> str:

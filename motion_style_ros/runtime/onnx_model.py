@@ -36,9 +36,13 @@ def read_card(model: Path) -> dict:
     """The JSON model card next to a model (``x.onnx`` -> ``x.json``)."""
     card = Path(model).with_suffix(".json")
     try:
-        return json.loads(card.read_text())
+        return json.loads(card.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise MotionStyleError(f"{card}: model card not found (it ships beside {Path(model).name})") from None
+    except UnicodeDecodeError:
+        raise MotionStyleError(f"{card}: not a text file (a model card is JSON)") from None
+    except OSError as exc:
+        raise MotionStyleError(f"{card}: {exc.strerror or exc}") from None
     except json.JSONDecodeError as exc:
         raise MotionStyleError(f"{card}: not valid JSON ({exc})") from None
 
