@@ -105,6 +105,12 @@ class Listener:
                 pytest.fail(f"timed out waiting for {what}")
             self.executor.spin_once(timeout_sec=0.05)
 
+    def spin_for(self, seconds):
+        """Spin for ``seconds`` (paces a publisher; lets messages in flight arrive)."""
+        deadline = time.monotonic() + seconds
+        while (left := deadline - time.monotonic()) > 0:
+            self.executor.spin_once(timeout_sec=min(left, 0.05))
+
     def spin_while_running(self, proc):
         """Spin until ``proc`` exits by itself, then a little longer for messages still in flight."""
         deadline = time.monotonic() + TIMEOUT

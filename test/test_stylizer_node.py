@@ -180,8 +180,20 @@ def check_trajectory_chunk(msg, names):
         assert len(p.positions) == len(names)
         assert len(p.velocities) in (0, len(names)) and len(p.accelerations) in (0, len(names))
         assert len(p.effort) == 0  # effort only for effort-commanded joints
-    assert not np.any(np.abs(msg.points[-1].velocities) > np.finfo(np.float32).eps)  # at rest at the end
+    # allow_nonzero_velocity_at_trajectory_end is false by default: no moving end
+    assert not np.any(np.abs(msg.points[-1].velocities) > np.finfo(np.float32).eps)
     return times
+
+
+def trajectory_points(chunks):
+    """Every point of the chunks in order: stamps (s, from the frames' spacing), positions and
+    velocities (NaN where a point has none)."""
+    t, pos, vel = [], [], []
+    for chunk in chunks:
+        for p in chunk.points:
+            pos.append(p.positions)
+            vel.append(p.velocities if len(p.velocities) else np.full(len(p.positions), np.nan))
+    return np.array(pos), np.array(vel)
 
 
 def test_a_replayed_bag_is_stylized_frame_for_frame(rig, bag, recorded, model):
@@ -212,6 +224,13 @@ def test_a_replayed_bag_is_stylized_frame_for_frame(rig, bag, recorded, model):
     print(f"largest per-frame angle step: trajectory {steps:.3f} rad, wrapped JointState "
           f"{wrapped_steps:.3f} rad")
     assert steps < 0.5 < wrapped_steps  # this walk crosses +-pi: the unwrapping is needed
+    # velocities: every point but each chunk's last, the positions' central differences
+    _, velocities = trajectory_points(rig.trajectories)
+    t = (stamps(got) - stamps(got)[0]) * 1e-9
+    central = (points[2:] - points[:-2]) / (t[2:] - t[:-2])[:, None]
+    inner = ~np.isnan(velocities[1:-1, 0])
+    assert inner.sum() == FRAMES - FRAMES // CHUNK - 1  # all but the chunks' last points and the first
+    np.testing.assert_allclose(velocities[1:-1][inner], central[inner], rtol=1e-6, atol=1e-9)
 
     # Markers: the stylized skeleton's bones, from FK, in REP-103 axes.
     skeleton = RecurrentSession(model).skeleton
@@ -433,3 +452,40 @@ def test_every_start_up_error_is_one_line_and_exit_2(ros_env, model, tmp_path, c
     err = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(err) == 1 and expected in err[0], done.stderr
     assert "Traceback" not in done.stderr + done.stdout
+
+
+def test_a_subscriber_set_up_as_joint_trajectory_controller_gets_every_chunk_at_defaults(
+        ros_env, model, recorded, tmp_path):
+    """JointTrajectoryController subscribes to ``~/joint_trajectory`` with rclcpp's
+    SystemDefaultsQoS (joint_trajectory_controller.cpp): reliable, the rmw's default depth. The
+    stylizer runs at its defaults, its output remapped onto the controller's topic; the input
+    comes best effort, as from a mocap driver."""
+    from rclpy.qos import qos_profile_sensor_data, qos_profile_system_default
+
+    topic = "/joint_trajectory_controller/joint_trajectory"
+    proc = start_node("stylizer", ros_env, log=tmp_path / "log", remaps={"stylized/trajectory": topic},
+                      model=model, input_fps=FPS)
+    listener = Listener("jtc_like")
+    try:
+        publisher = listener.node.create_publisher(JointState, "joint_states", qos_profile_sensor_data)
+        chunks = listener.subscribe(topic, JointTrajectory, qos_profile_system_default)
+        diagnostics = listener.subscribe("/diagnostics", DiagnosticArray, RELIABLE)
+        listener.spin_until(lambda: listener.subscriptions[topic].get_publisher_count()
+                            and publisher.get_subscription_count(), "the stylizer", procs=[proc])
+        for stamp_ns, values in recorded[:120]:  # paced at the input rate, as a driver sends
+            publisher.publish(message(stamp_ns, LAYOUT.names, values))
+            listener.spin_for(1.0 / FPS)
+
+        def frames_out():
+            values = [{kv.key: kv.value for kv in s.values} for a in diagnostics for s in a.status]
+            return int(values[-1]["frames_out"]) if values else -1
+
+        listener.spin_for(1.5)  # a diagnostics period: every frame counted, every chunk in
+        assert frames_out() >= 100  # best effort on loopback: (nearly) every frame
+        assert len(chunks) == frames_out() // 6
+        for chunk in chunks:
+            check_trajectory_chunk(chunk, LAYOUT.names)
+            assert all(len(p.velocities) == len(LAYOUT.names) for p in chunk.points[:-1])
+    finally:
+        listener.close()
+        stop(proc)

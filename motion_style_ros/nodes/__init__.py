@@ -55,11 +55,16 @@ class PlayerNode(Node):
     def stream_qos(self, depth: int = 10) -> QoSProfile:
         """The QoS of a node's JointState streams, from its ``qos_reliability`` and ``qos_depth``
         (``depth`` is the default: a recorder wants a deeper queue than a stylizer)."""
-        reliability = self.param("qos_reliability", "best_effort", "QoS reliability of the streams: "
-                                 "best_effort (sensor data; matches every peer) or reliable")
-        depth = self.param("qos_depth", depth, "QoS history depth of the streams", 1, 1000)
+        return self.qos("qos", "best_effort", depth, "the streams (best_effort: sensor data; matches "
+                        "every peer)")
+
+    def qos(self, prefix: str, reliability: str, depth: int, what: str) -> QoSProfile:
+        """A QoS from the parameters ``<prefix>_reliability`` and ``<prefix>_depth``."""
+        reliability = self.param(f"{prefix}_reliability", reliability, f"QoS reliability of {what}: "
+                                 "best_effort or reliable")
+        depth = self.param(f"{prefix}_depth", depth, f"QoS history depth of {what}", 1, 1000)
         if reliability not in RELIABILITY:
-            raise MotionStyleError(f"parameter qos_reliability is {reliability!r}; allowed: "
+            raise MotionStyleError(f"parameter {prefix}_reliability is {reliability!r}; allowed: "
                                    f"{', '.join(RELIABILITY)}")
         return QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
 

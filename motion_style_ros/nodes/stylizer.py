@@ -35,6 +35,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.nodes import PlayerNode, joint_state, run
 from motion_style_ros.runtime.intake import DROP_REASONS, RESTART_REASONS, Bounds, Dropped, Intake
+from motion_style_ros.runtime.trajectory import VELOCITIES, Chunk, Chunker
 from motion_style_ros.runtime.offline import NODE_SETTINGS, canonical_clip, default_model
 from motion_style_ros.runtime.session import RecurrentSession, describe_calibration
 from motion_style_ros.runtime.windowed import MAX_SPREAD, WindowedSession
@@ -49,20 +50,19 @@ TYPE_NAMES = {str: "string", float: "double", int: "integer", bool: "bool", list
               type(None): "nothing (not set)"}
 WARN_EVERY = 10.0  # s between two warnings of the same kind
 LATENCY_SECONDS = 5.0  # the latency percentiles are over the frames published in this last time
-TWO_PI = 2.0 * np.pi
 
 
 class Performer:
     """One performer's topics, session, counters and what its outputs continue from."""
 
     def __init__(self, node: Stylizer, prefix: str, session: RecurrentSession, qos: QoSProfile,
-                 markers: bool, bounds: Bounds) -> None:
+                 trajectory_qos: QoSProfile, markers: bool, bounds: Bounds, chunker: Chunker) -> None:
         self.prefix = prefix
         self.session = session
         try:
             self.state_out = node.create_publisher(JointState, self.topic("stylized/joint_states"), qos)
             self.trajectory_out = node.create_publisher(JointTrajectory,
-                                                        self.topic("stylized/trajectory"), qos)
+                                                        self.topic("stylized/trajectory"), trajectory_qos)
             self.markers_out = (node.create_publisher(MarkerArray, self.topic("stylized/markers"), qos)
                                 if markers else None)
             node.create_subscription(JointState, self.topic("joint_states"),
@@ -73,6 +73,7 @@ class Performer:
         self.counts = dict.fromkeys(["frames_in", "frames_out", *(f"dropped_{r}" for r in DROP_REASONS),
                                      *(f"restarted_{r}" for r in RESTART_REASONS)], 0)
         self.intake = Intake(bounds, 1.0 / session.input_fps)
+        self.chunker = chunker
         # (publish time, latency from DDS receipt to publication), both ns
         self.latencies: deque[tuple[int, int]] = deque()
         self.reported_drops = 0
@@ -83,7 +84,6 @@ class Performer:
         # The other names' values go out with the pose they came with: the frame of stamp - latency.
         self.delay = FrameDelay(session.gap_seconds)
         self.latency_ns = round(session.latency * 1e9)
-        self.angular = np.zeros(0, dtype=bool)  # per input name: an angle to unwrap
         self.clear()
 
     def topic(self, name: str) -> str:
@@ -92,9 +92,8 @@ class Performer:
     def clear(self) -> None:
         """Forget the stream: the next frame may have any stamp and starts a new trajectory."""
         self.intake.clear()
-        self.chunk: list[tuple[int, np.ndarray]] = []  # (stamp ns, unwrapped positions)
+        self.chunker.clear()
         self.chunk_frame_id = ""
-        self.previous: np.ndarray | None = None  # the last trajectory point, to unwrap against
         self.delay.clear()
 
     @property
@@ -128,8 +127,13 @@ class Stylizer(PlayerNode):
                            "in", 0.0, 60.0)
         layout = self.param("layout", "", "JointState layout YAML (config/layouts/); '' = canonical")
         qos = self.stream_qos()
-        self.trajectory_points = self.param("trajectory_points", 6, "points per JointTrajectory "
-                                            "chunk", 1, 120)
+        trajectory_points = self.param("trajectory_points", 6, "points per JointTrajectory chunk", 1, 120)
+        velocities = self.param("trajectory_velocities", VELOCITIES[0], "velocities of the trajectory "
+                                "points: inner (all but each chunk's last, which JointTrajectoryController "
+                                "accepts by default), all (set its allow_nonzero_velocity_at_trajectory_end), "
+                                "none (positions only)")
+        trajectory_qos = self.qos("trajectory_qos", "reliable", 10, "stylized/trajectory (reliable: "
+                                  "JointTrajectoryController subscribes reliably)")
         publish_markers = self.param("publish_markers", False, "publish the stylized skeleton as "
                                      "a visualization_msgs/MarkerArray on stylized/markers")
         threads = self.param("threads", 1, "ONNX Runtime threads per performer", 1, 16)
@@ -144,6 +148,9 @@ class Stylizer(PlayerNode):
                                "frames it does not need, which then run between frames: every frame "
                                "costs an interpolation on its way through, at one input frame more "
                                "latency (1/input_fps)")
+        if velocities not in VELOCITIES:
+            raise MotionStyleError(f"parameter trajectory_velocities is {velocities!r}; allowed: "
+                                   f"{', '.join(VELOCITIES)}")
         if backend not in BACKENDS:
             raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
         if bank and backend != "stgcn":
@@ -213,8 +220,10 @@ class Stylizer(PlayerNode):
                                       "between two frames; faster is dropped", 1e-3, 1e6),
             max_angle=self.param("max_angle", defaults.max_angle, "rad beyond which an angle is "
                                  "dropped as no rotation", 1.0, 1e9))
-        self.performers = [Performer(self, prefix, s, qos, publish_markers, bounds)
-                           for prefix, s in zip(prefixes, sessions)]
+        self.performers = [
+            Performer(self, prefix, s, qos, trajectory_qos, publish_markers, bounds,
+                      Chunker(trajectory_points, self.period_ns, s.gap_seconds, velocities))
+            for prefix, s in zip(prefixes, sessions)]
         self._reference = None  # the clip of the reference parameter, once read
         self._apply(self.settings)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -353,46 +362,36 @@ class Stylizer(PlayerNode):
         if tuple(names) == p.names:
             return
         self._flush(p)
-        p.previous = None
         p.names = tuple(names)
         where = {n: i for i, n in enumerate(p.names)}
         p.slots = np.array([where[n] for n in self.layout.names], dtype=np.intp)
         p.extra = np.setdiff1d(np.arange(len(p.names)), p.slots)
         p.delay.clear()
-        p.angular = np.zeros(len(p.names), dtype=bool)
-        p.angular[p.slots] = self.layout.angular
+        angular = np.zeros(len(p.names), dtype=bool)
+        angular[p.slots] = self.layout.angular
+        p.chunker.clear(angular)
 
     def _add_point(self, p: Performer, stamp_ns: int, positions: np.ndarray, frame_id: str) -> None:
-        """Queue one trajectory point, angles unwrapped against the previous point (no 2 pi jumps
-        inside or between chunks); publish a chunk when full or when the stream had a gap."""
-        if p.chunk and (stamp_ns - p.chunk[-1][0]) * 1e-9 > p.session.gap_seconds:
-            self._flush(p)
-        point = positions.copy()
-        if p.previous is not None:
-            a = p.angular
-            point[a] = p.previous[a] + np.mod(point[a] - p.previous[a] + np.pi, TWO_PI) - np.pi
-        p.previous = point
-        p.chunk.append((stamp_ns, point))
+        """Queue one trajectory point; publish the chunks it completes (runtime.trajectory)."""
         p.chunk_frame_id = frame_id
-        if len(p.chunk) == self.trajectory_points:
-            self._flush(p)
+        for chunk in p.chunker.add(stamp_ns, positions):
+            self._publish_chunk(p, chunk)
 
     def _flush(self, p: Performer) -> None:
-        """Publish the queued points as one JointTrajectory. Its header.stamp stays zero ("start on
-        receipt" for JointTrajectoryController: the frames are already past); the points keep the
-        input's spacing, the first one a nominal frame period after the start."""
-        if not p.chunk:
-            return
+        """Publish the chunk that is still filling."""
+        for chunk in p.chunker.flush():
+            self._publish_chunk(p, chunk)
+
+    def _publish_chunk(self, p: Performer, chunk: Chunk) -> None:
+        """One JointTrajectory; its header.stamp stays zero ("start on receipt" for
+        JointTrajectoryController: the frames are already past)."""
         msg = JointTrajectory(joint_names=list(p.names))
         msg.header.frame_id = p.chunk_frame_id
-        first = p.chunk[0][0]
-        for stamp_ns, positions in p.chunk:
-            offset = stamp_ns - first + self.period_ns
+        for offset, positions, velocities in zip(chunk.times_ns, chunk.positions, chunk.velocities):
             msg.points.append(JointTrajectoryPoint(
-                positions=positions.tolist(),
+                positions=positions.tolist(), velocities=[] if velocities is None else velocities.tolist(),
                 time_from_start=Duration(sec=offset // 1_000_000_000, nanosec=offset % 1_000_000_000)))
         p.trajectory_out.publish(msg)
-        p.chunk = []
 
     def _markers(self, p: Performer, rotations: np.ndarray, root: np.ndarray, stamp) -> MarkerArray:
         """The stylized skeleton's bones below the pelvis as one LINE_LIST, in REP-103 axes."""
