@@ -48,6 +48,7 @@ setup(
         *share_files('launch'),
         *share_files('config'),
         *share_files('models'),
+        *share_files('urdf'),
     ],
     # Runtime needs no torch and no ROS wheel: on a ROS install rclpy and the messages come from
     # the distribution; elsewhere requirements-ros-wheels.txt brings them from PyPI.
@@ -59,6 +60,8 @@ setup(
         'rosbags',
         'tqdm',
         'matplotlib',
+        # URDF files (robot targets, the canonical skeleton's description): parsing and FK
+        'yourdfpy',
     ],
     extras_require={
         # torch==2.13.0 exactly: a looser spec can pull a multi-GB CUDA build.

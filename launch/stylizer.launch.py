@@ -3,13 +3,19 @@
     ros2 launch motion_style_ros stylizer.launch.py target_style:=elderly alpha:=0.8
     ros2 launch motion_style_ros stylizer.launch.py use_synthetic:=true markers:=true  # try-out
     ros2 launch motion_style_ros stylizer.launch.py use_vmc:=true   # VMC in: config/vmc_bridge.yaml
+    ros2 launch motion_style_ros stylizer.launch.py use_synthetic:=true use_rsp:=true  # RViz RobotModel
 
 Parameters come from ``params_file`` (default: the installed ``config/stylizer.yaml``); a
 stylizer argument given on the command line overrides its parameter, one left empty keeps the
 file's value. Every node starts in ``namespace``, so the topics are ``<namespace>/joint_states``
 in and ``<namespace>/stylized/...`` out, and the VMC bridge and the synthetic performer feed the
-stylizer and the bridge streams its output back out without remapping.
+stylizer and the bridge streams its output back out without remapping. With ``use_rsp``,
+robot_state_publisher turns ``stylized/joint_states`` into TF with ``robot_description_file``
+(default: the installed canonical skeleton's URDF, whose joints are the layout's names).
 """
+
+from pathlib import Path
+
 
 import yaml
 from launch import LaunchDescription
@@ -59,6 +65,21 @@ def _stylizer(context, *args, **kwargs):
     )]
 
 
+def _robot_state_publisher(context, *args, **kwargs):
+    """robot_state_publisher on the stylized stream, with the description file's text."""
+    path = Path(LaunchConfiguration('robot_description_file').perform(context))
+    try:
+        description = path.read_text(encoding='utf-8')
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RuntimeError(f'launch argument robot_description_file: cannot read {path} ({exc})') from None
+    return [Node(
+        package='robot_state_publisher', executable='robot_state_publisher',
+        namespace=LaunchConfiguration('namespace'), output='screen',
+        parameters=[{'robot_description': description}],
+        remappings=[('joint_states', 'stylized/joint_states')],
+    )]
+
+
 def generate_launch_description():
     share = FindPackageShare(PACKAGE)
     arguments = [
@@ -77,6 +98,13 @@ def generate_launch_description():
             description='vmc_bridge parameters (OSC ports, avatar host)'),
         DeclareLaunchArgument('use_synthetic', default_value='false', choices=['true', 'false'],
                               description='also start synthetic_performer (a try-out without mocap)'),
+        DeclareLaunchArgument('use_rsp', default_value='false', choices=['true', 'false'],
+                              description='also start robot_state_publisher on stylized/joint_states '
+                                          '(TF for RViz\'s RobotModel display)'),
+        DeclareLaunchArgument(
+            'robot_description_file',
+            default_value=PathJoinSubstitution([share, 'urdf', 'canonical_skeleton.urdf']),
+            description='URDF for robot_state_publisher (default: the canonical skeleton)'),
         DeclareLaunchArgument('synthetic_motion', default_value='walk',
                               choices=['walk', 'run', 'wave'],
                               description='what the synthetic performer performs'),
@@ -93,4 +121,5 @@ def generate_launch_description():
         parameters=[{'motion': LaunchConfiguration('synthetic_motion')}],
         condition=IfCondition(LaunchConfiguration('use_synthetic')),
     )
-    return LaunchDescription([*arguments, OpaqueFunction(function=_stylizer), vmc_bridge, performer])
+    rsp = OpaqueFunction(function=_robot_state_publisher, condition=IfCondition(LaunchConfiguration('use_rsp')))
+    return LaunchDescription([*arguments, OpaqueFunction(function=_stylizer), vmc_bridge, performer, rsp])

@@ -22,17 +22,17 @@ LAUNCH = ROOT / "launch" / "stylizer.launch.py"
 
 def declared(node: str) -> set[str]:
     """Parameter names a node declares (every node declares through ``self.param("name", ...)``,
-    the QoS ones through ``self.stream_qos()``, which nodes/__init__.py defines)."""
-    nodes = ROOT / "motion_style_ros" / "nodes"
-    source = (nodes / f"{node}.py").read_text()
-    if "self.stream_qos(" in source:
-        source += (nodes / "__init__.py").read_text()
-    return set(re.findall(r'self\.param\(\s*"(\w+)"', source))
+    the QoS ones through ``self.qos("prefix", ...)`` as ``prefix_reliability`` and ``prefix_depth``,
+    and ``self.stream_qos()`` as ``qos_...``; nodes/__init__.py defines both)."""
+    source = (ROOT / "motion_style_ros" / "nodes" / f"{node}.py").read_text()
+    prefixes = re.findall(r'self\.qos\(\s*"(\w+)"', source) + ["qos"] * ("self.stream_qos(" in source)
+    return (set(re.findall(r'self\.param\(\s*"(\w+)"', source))
+            | {f"{p}_{kind}" for p in prefixes for kind in ("reliability", "depth")})
 
 
 def node_calls(tree: ast.Module) -> dict[str, dict[str, ast.expr]]:
-    """Keyword arguments of the launch file's ``Node(...)`` calls by executable; checks that each
-    starts a node of this package."""
+    """Keyword arguments of the launch file's ``Node(...)`` calls of this package by executable
+    (robot_state_publisher, the one other package's node, aside)."""
     constants = {n.targets[0].id: n.value for n in tree.body
                  if isinstance(n, ast.Assign) and isinstance(n.targets[0], ast.Name)}
     calls = {}
@@ -40,6 +40,8 @@ def node_calls(tree: ast.Module) -> dict[str, dict[str, ast.expr]]:
         if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "Node":
             kwargs = {k.arg: k.value for k in call.keywords}
             package = kwargs["package"]
+            if isinstance(package, ast.Constant) and package.value == "robot_state_publisher":
+                continue
             assert ast.literal_eval(constants.get(getattr(package, "id", None), package)) == "motion_style_ros"
             calls[ast.literal_eval(kwargs["executable"])] = kwargs
     return calls

@@ -36,6 +36,7 @@ SUBCOMMANDS = (
     "data",      # dataset unpacking, indexing, inspection
     "stylize",   # restyle a BVH clip offline
     "retarget",  # retarget motion between skeletons
+    "description",  # the canonical skeleton as a URDF (RViz)
     "train",     # train models (torch)
     "eval",      # metrics and baselines
     "render",    # plots / videos of motion
