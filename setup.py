@@ -79,6 +79,7 @@ setup(
             'synthetic_performer = motion_style_ros.nodes.synthetic_performer:main',
             'vmc_bridge = motion_style_ros.nodes.vmc_bridge:main',
             'stylizer = motion_style_ros.nodes.stylizer:main',
+            'stylizer_managed = motion_style_ros.nodes.stylizer_managed:main',
             'relay = motion_style_ros.nodes.relay:main',
         ],
     },

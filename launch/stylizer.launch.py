@@ -4,6 +4,7 @@
     ros2 launch motion_style_ros stylizer.launch.py use_synthetic:=true markers:=true  # try-out
     ros2 launch motion_style_ros stylizer.launch.py use_vmc:=true   # VMC in: config/vmc_bridge.yaml
     ros2 launch motion_style_ros stylizer.launch.py use_synthetic:=true use_rsp:=true  # RViz RobotModel
+    ros2 launch motion_style_ros stylizer.launch.py managed:=true  # lifecycle node, brought to active
 
 Parameters come from ``params_file`` (default: the installed ``config/stylizer.yaml``); a
 stylizer argument given on the command line overrides its parameter, one left empty keeps the
@@ -19,11 +20,15 @@ from pathlib import Path
 
 import yaml
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction, RegisterEventHandler
 from launch.conditions import IfCondition
+from launch.events import matches_action
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
-from launch_ros.actions import Node
+from launch_ros.actions import LifecycleNode, Node
+from launch_ros.event_handlers import OnStateTransition
+from launch_ros.events.lifecycle import ChangeState
 from launch_ros.substitutions import FindPackageShare
+from lifecycle_msgs.msg import Transition
 
 PACKAGE = 'motion_style_ros'
 
@@ -58,11 +63,21 @@ def _stylizer(context, *args, **kwargs):
             except (ValueError, yaml.YAMLError):
                 raise RuntimeError(f'launch argument {argument}:={text!r} is not a valid '
                                    f'{parameter} ({STYLIZER_ARGUMENTS[argument][2]})') from None
-    return [Node(
-        package=PACKAGE, executable='stylizer', name='stylizer',
-        namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
-        parameters=[LaunchConfiguration('params_file'), overrides],
-    )]
+    common = dict(namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
+                  parameters=[LaunchConfiguration('params_file'), overrides])
+    if LaunchConfiguration('managed').perform(context) != 'true':
+        return [Node(package=PACKAGE, executable='stylizer', name='stylizer', **common)]
+    # The managed node, brought to active: configure now, activate once it is inactive.
+    node = LifecycleNode(package=PACKAGE, executable='stylizer_managed', name='stylizer', **common)
+
+    def change(transition):
+        return EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(node),
+                                           transition_id=transition))
+
+    activate = RegisterEventHandler(OnStateTransition(
+        target_lifecycle_node=node, goal_state='inactive',
+        entities=[change(Transition.TRANSITION_ACTIVATE)]))
+    return [node, activate, change(Transition.TRANSITION_CONFIGURE)]
 
 
 def _robot_state_publisher(context, *args, **kwargs):
@@ -91,6 +106,9 @@ def generate_launch_description():
         *(DeclareLaunchArgument(name, default_value='',
                                 description=f'{text}; empty: from params_file')
           for name, (_, _, text) in STYLIZER_ARGUMENTS.items()),
+        DeclareLaunchArgument('managed', default_value='false', choices=['true', 'false'],
+                              description='run the stylizer as a managed (lifecycle) node, '
+                                          'brought to active'),
         DeclareLaunchArgument('use_vmc', default_value='false', choices=['true', 'false'],
                               description='also start vmc_bridge (VMC/OSC in and out)'),
         DeclareLaunchArgument(

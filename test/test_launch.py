@@ -37,7 +37,7 @@ def node_calls(tree: ast.Module) -> dict[str, dict[str, ast.expr]]:
                  if isinstance(n, ast.Assign) and isinstance(n.targets[0], ast.Name)}
     calls = {}
     for call in ast.walk(tree):
-        if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "Node":
+        if isinstance(call, ast.Call) and getattr(call.func, "id", None) in ("Node", "LifecycleNode"):
             kwargs = {k.arg: k.value for k in call.keywords}
             package = kwargs["package"]
             if isinstance(package, ast.Constant) and package.value == "robot_state_publisher":
@@ -57,10 +57,10 @@ def test_launch_starts_console_scripts_of_the_package():
     tree = ast.parse(LAUNCH.read_text())
     setup = (ROOT / "setup.py").read_text()
     calls = node_calls(tree)
-    assert set(calls) == {"stylizer", "vmc_bridge", "synthetic_performer"}
+    assert set(calls) == {"stylizer", "stylizer_managed", "vmc_bridge", "synthetic_performer"}
     for executable, kwargs in calls.items():
         assert re.search(rf"'{executable} = motion_style_ros\.nodes\.{executable}:main'", setup)
-        assert ast.literal_eval(kwargs["name"]) == executable
+        assert ast.literal_eval(kwargs["name"]) == executable.removesuffix("_managed")
     assert any(isinstance(n, ast.FunctionDef) and n.name == "generate_launch_description"
                for n in tree.body)
 

@@ -126,3 +126,17 @@ def test_a_node_that_cannot_start_says_why_in_one_line(start, node, params, expe
     assert proc.wait(TIMEOUT) == 2
     err = proc.stderr.read().strip().splitlines()
     assert len(err) == 1 and "ERROR" in err[0] and expected in err[0], err
+
+
+def test_a_looped_clip_walks_on_from_where_it_ended(datasets):
+    from motion_style_ros.nodes.bvh_player import lap, load
+
+    layout = JointStateLayout.canonical()
+    frames, _ = load(str(datasets / CMU_CLIP), layout)
+    shift = lap(frames, layout)
+    root = [layout.names.index(f"root_t{a}") for a in "xyz"]
+    assert np.count_nonzero(shift) == 2 and shift[root[2]] == 0.0  # horizontal root channels only
+    flat = root[:2]  # the next pass starts one step on from the end, horizontally
+    step = frames[1, flat] - frames[0, flat]
+    np.testing.assert_allclose((frames[0] + shift)[flat] - frames[-1][flat], step, atol=1e-9)
+    assert np.linalg.norm(frames[-1, flat] - frames[0, flat]) > 0.5  # without it: a jump back

@@ -463,11 +463,11 @@ def test_a_subscriber_set_up_as_joint_trajectory_controller_gets_every_chunk_at_
     from rclpy.qos import qos_profile_sensor_data, qos_profile_system_default
 
     topic = "/joint_trajectory_controller/joint_trajectory"
-    proc = start_node("stylizer", ros_env, log=tmp_path / "log", remaps={"stylized/trajectory": topic},
-                      model=model, input_fps=FPS)
+    proc = start_node("stylizer", ros_env, log=tmp_path / "log",
+                      remaps={"__ns": "/jtc", "stylized/trajectory": topic}, model=model, input_fps=FPS)
     listener = Listener("jtc_like")
     try:
-        publisher = listener.node.create_publisher(JointState, "joint_states", qos_profile_sensor_data)
+        publisher = listener.node.create_publisher(JointState, "/jtc/joint_states", qos_profile_sensor_data)
         chunks = listener.subscribe(topic, JointTrajectory, qos_profile_system_default)
         diagnostics = listener.subscribe("/diagnostics", DiagnosticArray, RELIABLE)
         listener.spin_until(lambda: listener.subscriptions[topic].get_publisher_count()
@@ -477,7 +477,8 @@ def test_a_subscriber_set_up_as_joint_trajectory_controller_gets_every_chunk_at_
             listener.spin_for(1.0 / FPS)
 
         def frames_out():
-            values = [{kv.key: kv.value for kv in s.values} for a in diagnostics for s in a.status]
+            values = [{kv.key: kv.value for kv in s.values} for a in diagnostics for s in a.status
+                      if s.name.endswith(": /jtc/joint_states")]
             return int(values[-1]["frames_out"]) if values else -1
 
         listener.spin_for(1.5)  # a diagnostics period: every frame counted, every chunk in

@@ -8,10 +8,11 @@ outputs are checked against an offline :class:`WindowedSession` fed the same fra
 import numpy as np
 import pytest
 import ros_helpers
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers import Listener, message, replay, stamps, start_node, stop
+from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.core.synthetic import synthetic_motion
@@ -66,11 +67,23 @@ def node(model, ros_env, tmp_path_factory):
             publisher.publish(message(stamp_ns, LAYOUT.names, positions))
         listener.spin_until(lambda: len(got) >= expected, f"{expected} stylized states", procs=[proc])
 
+    diagnostics = listener.subscribe("/diagnostics", DiagnosticArray, RELIABLE)
+
     def set_parameters(**values):
+        """Set them; once accepted, wait until the node reports them in use (a reference clip is
+        read on a worker thread and applied after)."""
         request = SetParameters.Request(
             parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
-        return listener.call(client, request, procs=[proc]).results
+        results = listener.call(client, request, procs=[proc]).results
+        if all(r.successful for r in results):
+            diagnostics.clear()
+            listener.spin_until(lambda: any(
+                all({kv.key: kv.value for kv in st.values}.get(k) == str(v) for k, v in values.items())
+                for a in diagnostics for st in a.status), f"{values} in use", procs=[proc])
+        return results
 
+    set_parameters.raw = lambda request: listener.call(client, request, procs=[proc]).results
+    set_parameters.diagnostics, set_parameters.listener = diagnostics, listener
     yield send, set_parameters, got, proc
     listener.close()
     stop(proc)
@@ -139,7 +152,10 @@ def test_a_reference_stays_in_use_when_the_seed_changes(node, model, frames, dat
     clip's code is still the one in use."""
     send, set_parameters, got, _ = node
     assert len(got) == len(frames)  # after the reference test: its clip is in use
-    more = [(T0 + (len(frames) + k) * PERIOD, v) for k, (_, v) in enumerate(frames[:90])]
+    roots = np.array([v[:3] for _, v in frames])
+    lap = roots[-1] - roots[0] + (roots[1] - roots[0])  # the walk goes on from where it ended
+    more = [(T0 + (len(frames) + k) * PERIOD, np.concatenate([v[:3] + lap, v[3:]]))
+            for k, (_, v) in enumerate(frames[:90])]
     send(more[:30])
     (result,) = set_parameters(latent_seed=9)
     assert result.successful, result.reason
@@ -173,11 +189,11 @@ def test_an_enrolled_style_of_the_style_bank_is_a_target_style(model, ros_env, d
     bank = tmp_path / "mine.json"
     style_bank.write(bank, {"bouncy": entry}, "stgcn", session.model_digest)
     # started straight into the enrolled style: an unknown one would stop it at start-up
-    proc = start_node("stylizer", ros_env, backend="stgcn", model=model, style_bank=str(bank),
-                      target_style="bouncy", lookahead=LOOKAHEAD)
+    proc = start_node("stylizer", ros_env, remaps={"__ns": "/bank"}, backend="stgcn", model=model,
+                      style_bank=str(bank), target_style="bouncy", lookahead=LOOKAHEAD)
     listener = Listener("bank_test")
     try:
-        client = listener.node.create_client(SetParameters, "/stylizer/set_parameters")
+        client = listener.node.create_client(SetParameters, "/bank/stylizer/set_parameters")
 
         def set_style(name):
             request = SetParameters.Request(parameters=[Parameter("target_style", value=name).to_parameter_msg()])
@@ -190,3 +206,28 @@ def test_an_enrolled_style_of_the_style_bank_is_a_target_style(model, ros_env, d
     finally:
         listener.close()
         stop(proc)
+
+
+def test_a_clip_the_worker_cannot_use_is_reported_and_the_reference_goes_back(node, tmp_path):
+    """The header looks right, so the set is accepted at once; the worker thread then finds the
+    body broken, logs why, and sets ``reference`` back to the clip in use."""
+    _, set_parameters, _, proc = node
+    broken = tmp_path / "broken.bvh"
+    broken.write_text("HIERARCHY\nROOT Hips\n{\n}\nMOTION\nFrames: 100\nFrame Time: 0.0333333\n1 2 x\n")
+    listener, diagnostics = set_parameters.listener, set_parameters.diagnostics
+    diagnostics.clear()
+    listener.spin_until(lambda: diagnostics, "a status", procs=[proc])
+    before = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}["reference"]
+    (result,) = set_parameters.raw(SetParameters.Request(
+        parameters=[Parameter("reference", value=str(broken)).to_parameter_msg()]))
+    assert result.successful, result.reason
+    getter = listener.node.create_client(GetParameters, "/stylizer/get_parameters")
+
+    def parameter():
+        return listener.call(getter, GetParameters.Request(names=["reference"]), procs=[proc]).values[0].string_value
+
+    listener.spin_until(lambda: parameter() == before, "the reference set back", procs=[proc])
+    diagnostics.clear()
+    listener.spin_for(1.5)
+    assert {kv.key: kv.value for kv in diagnostics[-1].status[0].values}["reference"] == before
+    assert proc.poll() is None

@@ -42,6 +42,7 @@ SUBCOMMANDS = (
     "render",    # plots / videos of motion
     "bench",     # latency and throughput
     "style",     # enrol styles of your own (style bank)
+    "robot",     # stylized motion on a humanoid robot (URDF)
     "version",   # print versions
 )
 

@@ -278,6 +278,21 @@ def write(path: str | Path, clip: BvhClip, precision: int | None = None) -> None
     Path(path).write_text(out.getvalue(), encoding="utf-8")
 
 
+def duration(path: str | Path) -> tuple[int, float]:
+    """``(frames, frame time in s)`` from the header alone (a quick check before a full read),
+    or a one-line :class:`MotionStyleError`."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as e:
+        raise MotionStyleError(f"{path}: cannot read ({e.strerror or e})") from None
+    _, sep, body = data.partition(b"MOTION")
+    m = re.match(rb"\s*Frames:\s*([0-9+-]+)\s+Frame\s+Time:\s*(\S+)", body) if sep else None
+    try:
+        return int(m[1]), float(m[2])
+    except (TypeError, ValueError):
+        raise MotionStyleError(f"{path}: not a BVH file (no 'Frames:' and 'Frame Time:' after MOTION)") from None
+
+
 def check(path: Path, joints: tuple[str, ...]) -> str | None:
     """The first problem :func:`read` would report, found without converting the numbers.
 

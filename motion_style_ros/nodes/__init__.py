@@ -30,12 +30,8 @@ RCLError = rclpy_implementation.RCLError
 RELIABILITY = {"best_effort": ReliabilityPolicy.BEST_EFFORT, "reliable": ReliabilityPolicy.RELIABLE}
 
 
-class PlayerNode(Node):
-    """A node that may finish on its own: ``done`` completes when it has nothing more to do."""
-
-    def __init__(self, name: str) -> None:
-        super().__init__(name)
-        self.done = Future()
+class Parameters:
+    """Parameter declaration for this package's nodes, plain or managed (a mixin of rclpy nodes)."""
 
     def param(self, name: str, default, description: str, low: float | None = None,
               high: float | None = None, read_only: bool = True):
@@ -50,6 +46,8 @@ class PlayerNode(Node):
         elif low is not None:
             descriptor.floating_point_range = [FloatingPointRange(from_value=float(low),
                                                                   to_value=float(high))]
+        if self.has_parameter(name):  # a managed node configured again
+            return self.get_parameter(name).value
         return self.declare_parameter(name, default, descriptor).value
 
     def stream_qos(self, depth: int = 10) -> QoSProfile:
@@ -67,6 +65,14 @@ class PlayerNode(Node):
             raise MotionStyleError(f"parameter {prefix}_reliability is {reliability!r}; allowed: "
                                    f"{', '.join(RELIABILITY)}")
         return QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
+
+
+class PlayerNode(Parameters, Node):
+    """A node that may finish on its own: ``done`` completes when it has nothing more to do."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.done = Future()
 
 
 def joint_state(names: Sequence[str], positions: np.ndarray, stamp, frame_id: str = "") -> JointState:
@@ -95,7 +101,7 @@ def _init(args) -> None:
             os.close(saved)
 
 
-def run(make_node: Callable[[], PlayerNode], name: str, args=None) -> int:
+def run(make_node: Callable[[], Node], name: str, args=None) -> int:
     """Init, build the node (``name`` is its default node name, for the log before it exists), spin
     until it is done or interrupted; 2 when it cannot start (bad ROS arguments or parameter files
     included: rclpy.init's error, without its C source locations)."""

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 
@@ -26,12 +28,25 @@ def load(path: str, layout: JointStateLayout):
     return layout.encode_motion(motion.check_finite(path)), motion.fps
 
 
+def lap(frames: np.ndarray, layout: JointStateLayout) -> np.ndarray:
+    """What a loop adds to every frame of the next pass: the root's horizontal travel over a pass
+    (plus a frame's step), so a looped walk walks on instead of jumping back to its start, which a
+    stylizer would drop as a speed no one makes (the channels as the layout encodes them)."""
+    rotations, root = layout.decode(layout.names, frames[0])
+    _, last = layout.decode(layout.names, frames[-1])
+    _, second = layout.decode(layout.names, frames[1 if len(frames) > 1 else 0])
+    travel = last - root + (second - root)
+    travel[1] = 0.0  # core Y is up: only the horizontal travel carries on
+    return layout.encode(rotations, root + travel) - layout.encode(rotations, root)
+
+
 class BvhPlayer(PlayerNode):
     def __init__(self) -> None:
         super().__init__(NAME)
         path = self.param("file", "", "BVH file of a humanoid (canonical, CMU or Unity joint names)")
         rate = self.param("rate", 1.0, "playback speed factor", 0.01, 100.0)
-        self.loop = self.param("loop", False, "start over at the end instead of exiting")
+        self.loop = self.param("loop", False, "start over at the end instead of exiting (the root "
+                               "walks on from where the clip ends)")
         topic = self.param("topic", "joint_states", "JointState topic to publish on")
         self.frame_id = self.param("frame_id", "", "header.frame_id of the messages")
         self.wait = self.param("wait_for_subscribers", 0, "hold playback until this many subscribers "
@@ -45,6 +60,8 @@ class BvhPlayer(PlayerNode):
         if start >= len(self.frames):
             raise MotionStyleError(f"parameter start_frame is {start}; {path} has {len(self.frames)} frames")
         self.frames = self.frames[start:]
+        self.lap = lap(self.frames, self.layout)
+        self.passes = 0
         self.index = 0
         self.publisher = self.create_publisher(JointState, topic, qos_profile_sensor_data)
         self.create_timer(1.0 / (fps * rate), self._tick)
@@ -60,7 +77,8 @@ class BvhPlayer(PlayerNode):
                 self.done.set_result(True)
                 return
             self.index = 0
-        self.publisher.publish(joint_state(self.layout.names, self.frames[self.index],
+            self.passes += 1
+        self.publisher.publish(joint_state(self.layout.names, self.frames[self.index] + self.passes * self.lap,
                                            self.get_clock().now().to_msg(), self.frame_id))
         self.index += 1
 

@@ -181,7 +181,12 @@ class WindowedSession(RecurrentSession):
         """Move like this recording: the reference clip's style code (style encoder) becomes the
         target. ``style`` names the clip's style (which encoder head to read); by default the
         encoder's own classifier recognises it. Sets that style as the target; returns it."""
-        codes, logits = self.reference_codes(motion)
+        return self.use_reference(*self.reference_codes(motion), style, performer)
+
+    def use_reference(self, codes: np.ndarray, logits: np.ndarray, style: str | None = None,
+                      performer: int | None = None) -> str:
+        """:meth:`set_reference` with the clip's :meth:`reference_codes` already made (a node makes
+        them off the thread that streams)."""
         k = int(np.argmax(logits)) if style is None else self._controls.style_index(style)
         head = k if k < self._known else self.styles.index(self.bank[self.styles[k]].head)
         which = self._controls.which(performer)

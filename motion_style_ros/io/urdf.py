@@ -1,0 +1,82 @@
+"""Read a robot's kinematics from a URDF file (yourdfpy) into plain numpy data.
+
+Only what a motion target needs is kept: the joints (type, parent and child link, origin, axis,
+position and velocity limits), each link's centre of mass, and sample points of each link's
+primitive collision shapes (boxes, spheres, cylinders; visual ones for links without collision
+shapes), which say where a foot's sole is. Meshes are never loaded: the kinematics are all in the
+URDF text, and the robot descriptions this package is tested with ship without meshes.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from motion_style_ros.core.robot_target import RobotModel, UrdfJoint
+from motion_style_ros.errors import MotionStyleError
+
+
+def _shape_points(geometry, origin: np.ndarray) -> np.ndarray | None:
+    """Points on a primitive shape's surface (its corners / extreme points), in the link frame."""
+    if geometry is None:
+        return None
+    if geometry.box is not None:
+        half = np.asarray(geometry.box.size, dtype=np.float64) / 2.0
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+        local = signs * half
+    elif geometry.sphere is not None:
+        r = float(geometry.sphere.radius)
+        local = np.vstack([np.eye(3) * r, -np.eye(3) * r])
+    elif geometry.cylinder is not None:
+        r, h = float(geometry.cylinder.radius), float(geometry.cylinder.length)
+        a = np.linspace(0.0, 2 * np.pi, 8, endpoint=False)
+        ring = np.stack([r * np.cos(a), r * np.sin(a), np.zeros_like(a)], axis=-1)
+        local = np.vstack([ring + [0, 0, h / 2], ring - [0, 0, h / 2]])
+    else:  # meshes (not loaded) and capsules: no points
+        return None
+    return local @ origin[:3, :3].T + origin[:3, 3]
+
+
+def read(path: str | Path) -> RobotModel:
+    """The kinematics of the URDF at ``path``; a missing or unreadable file is a one-line
+    :class:`MotionStyleError`."""
+    import yourdfpy
+
+    path = Path(path)
+    if not path.is_file():
+        raise MotionStyleError(f"{path}: no such URDF file")
+    try:
+        urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
+                                  build_collision_scene_graph=False, load_collision_meshes=False)
+    except Exception as exc:  # lxml / yourdfpy raise many kinds on a bad file
+        problem = " ".join(str(exc).split()) or type(exc).__name__
+        raise MotionStyleError(f"{path}: not a readable URDF ({problem[:200]})") from None
+    robot = urdf.robot
+    if robot is None or not robot.links:
+        raise MotionStyleError(f"{path}: the URDF has no links")
+    joints = []
+    for j in robot.joints:
+        limit = j.limit
+        lower = -np.inf if limit is None or limit.lower is None else float(limit.lower)
+        upper = np.inf if limit is None or limit.upper is None else float(limit.upper)
+        if j.type == "continuous" or (j.type == "revolute" and lower == upper == 0.0 and limit is None):
+            lower, upper = -np.inf, np.inf
+        velocity = np.inf if limit is None or not limit.velocity else float(limit.velocity)
+        axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=np.float64)
+        origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=np.float64)
+        joints.append(UrdfJoint(j.name, j.type, j.parent, j.child, origin, axis, lower, upper,
+                                velocity, j.mimic is not None))
+    coms, shapes = {}, {}
+    for link in robot.links:
+        if link.inertial is not None and link.inertial.origin is not None:
+            coms[link.name] = np.asarray(link.inertial.origin, dtype=np.float64)[:3, 3].copy()
+        for parts in (link.collisions or [], link.visuals or []):  # visual shapes if no collision ones
+            points = [_shape_points(part.geometry, np.eye(4) if part.origin is None
+                                    else np.asarray(part.origin, dtype=np.float64)) for part in parts]
+            points = [p for p in points if p is not None]
+            if points:
+                shapes[link.name] = np.vstack(points)
+                break
+    return RobotModel(robot.name or path.stem, str(path), [link.name for link in robot.links],
+                      joints, coms, shapes)
