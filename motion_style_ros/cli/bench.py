@@ -74,6 +74,11 @@ def add_parser(subparsers):
     nodes.add_argument("--pipelined", action="store_true",
                        help="the node's pipelined mode: each frame is published before the model "
                             "frames it does not need run (one input frame more latency)")
+    nodes.add_argument("--reference", default=None, metavar="CLIP.bvh",
+                       help="stgcn: set the reference parameter to this clip and back every 2 s "
+                            "while streaming, and report the longest gap between two outputs of a "
+                            "performer against the longest gap between two inputs (the clip is read "
+                            "off the streams' thread)")
     nodes.set_defaults(func=run_nodes)
     recurrent.add_argument("--model", default=DEFAULT_MODEL,
                            help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
@@ -335,6 +340,8 @@ def run_nodes(args) -> int:
         raise MotionStyleError(f"--rates takes numbers separated by commas, got {args.rates!r}") from None
     if min(rates) <= 0 or args.seconds <= 0 or args.performers < 1:
         raise MotionStyleError("--rates, --seconds and --performers must be positive")
+    if args.reference and args.backend != "stgcn":
+        raise MotionStyleError("--reference needs --backend stgcn (its style encoder reads the clip)")
     from motion_style_ros.runtime.offline import default_model
 
     path = _model(args.model or default_model(args.backend)).resolve()
@@ -349,6 +356,9 @@ def run_nodes(args) -> int:
     rows = [(node, rate, 1) for rate in rates for node in ("relay", "stylizer")]
     if args.performers > 1:
         rows.append(("stylizer", max(rates), args.performers))
+    if args.reference:  # the reference changes at the highest rate, with every performer
+        rows = [("relay", max(rates), 1), ("stylizer", max(rates), args.performers),
+                ("stylizer+reference", max(rates), args.performers)]
     delays = {rate: 1000 * _output_delay(path, args, rate) for rate in rates}  # ms, the stylizer's
     logs = Path(tempfile.mkdtemp(prefix="motion_style_bench_"))
     print(f"machine: {os.cpu_count()} cores, load average {_load()} (before); node logs in {logs}")
@@ -360,14 +370,20 @@ def run_nodes(args) -> int:
     print(" ".join(f"{c:>10}" for c in columns))
     with LiveGraph("motion_style_bench", logs) as graph:
         for node, rate, performers in rows:
-            latency_ms, sent, node_p99, cpu, own = _stream_nodes(
-                graph, node, rate, performers, args.seconds,
-                {"model": str(path), **settings} if node == "stylizer" else {})
+            latency_ms, sent, node_p99, cpu, own, gaps = _stream_nodes(
+                graph, node.split("+")[0], rate, performers, args.seconds,
+                {"model": str(path), **settings} if node.startswith("stylizer") else {},
+                reference=args.reference if node.endswith("+reference") else None)
             p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
-            delay = delays[rate] if node == "stylizer" else 0.0
-            print(f"{node:>10} {rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} "
+            delay = delays[rate] if node.startswith("stylizer") else 0.0
+            print(f"{node.split('+')[0]:>10} {rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} "
                   f"{worst:>10.2f} {sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} "
                   f"{own:>10.0f} {delay:>10.1f}")
+            if args.reference:
+                print(f"{'':>10} longest gap between two outputs of a performer {gaps['output_ms']:.1f} ms "
+                      f"({gaps['output_ms'] * rate / 1000:.2f} input periods), between two inputs sent "
+                      f"{gaps['input_ms']:.1f} ms; reference changes {gaps['changes']}"
+                      + (" (the clip read and encoded on the node's worker thread)" if gaps["changes"] else ""))
     print(f"load average {_load()} (after); node p99: the stylizer's own p99 (ms, worst performer) "
           "from a message's arrival in its DDS reader to the stylized frame's publication, from its "
           "/diagnostics; CPU: the node process, % of one core; bench CPU: this process's "
@@ -406,11 +422,14 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float, settings: dict):
+def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float, settings: dict,
+                  reference: str | None = None):
     """One row: a fresh node ``name`` (stylizer or relay, with ``settings``) for ``performers``
     performers at ``rate`` Hz; returns the latency (ms) of every measured frame that came back, how
     many were sent, the node's own p99 (ms, its last diagnostics, worst performer; NaN without),
-    and the CPU use of the node and of this process (% of one core) over the measured interval."""
+    and the CPU use of the node and of this process (% of one core) over the measured interval, and
+    the longest gaps (ms) between two outputs of a performer and two inputs sent; with
+    ``reference``, the stylizer's reference parameter goes to that clip and back every 2 s."""
     import os
     import time
 
@@ -450,19 +469,30 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
                      f"the {name} for {performers} performer(s) to start", STARTUP_SECONDS)
 
     layout = JointStateLayout.canonical()
-    frames = layout.encode_motion(synthetic_motion("walk", rate, 4.0)).tolist()  # looped
+    # one walk for the whole stream: a looped clip would jump back, which the stylizer drops
+    frames = layout.encode_motion(synthetic_motion("walk", rate, NODE_WARMUP + seconds + 10.0)).tolist()
     clock = node.get_clock()
     sent: list[list[int]] = [[] for _ in topics]  # per performer: stamps sent while measuring
     start = time.monotonic()
     measure_from, end = start + NODE_WARMUP, start + NODE_WARMUP + seconds
     cpu_from: list[tuple[float, float, float]] = []  # stylizer's and own CPU s, wall s at the start
     count = 0
+    changes = []
+    if reference:
+        from rclpy.parameter import Parameter
+        from rclpy.parameter_client import AsyncParameterClient
+
+        client = AsyncParameterClient(node, "stylizer")
+        client.wait_for_services(STARTUP_SECONDS)
 
     def publish() -> None:
         nonlocal count
         now = time.monotonic()
         if now >= end:
             return
+        if reference and now >= measure_from + 2.0 * len(changes):
+            changes.append(client.set_parameters([Parameter("reference", value=reference if len(changes) % 2 == 0
+                                                            else "")]))
         if now >= measure_from and not cpu_from:
             cpu_from.append((_cpu_seconds(proc.pid), _cpu_seconds(os.getpid()), now))
         for publisher, stamps in zip(publishers, sent):
@@ -489,5 +519,10 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
         node.destroy_subscription(subscription)
     graph.stop(name)
     latency = [got[s] - s for stamps, got in zip(sent, arrivals) for s in stamps if s in got]
+    output_gap = max((np.diff(sorted(got[s] for s in stamps if s in got)).max(initial=0)
+                      for stamps, got in zip(sent, arrivals)), default=0)
+    input_gap = max((np.diff(stamps).max(initial=0) for stamps in sent), default=0)
+    gaps = {"output_ms": output_gap / 1e6, "input_ms": input_gap / 1e6,
+            "changes": sum(f.done() and all(r.successful for r in f.result().results) for f in changes)}
     return (np.array(latency) / 1e6, sum(map(len, sent)), max(node_p99.values(), default=np.nan),
-            cpu, own)
+            cpu, own, gaps)
