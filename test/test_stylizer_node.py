@@ -9,6 +9,7 @@ every output against an offline :class:`RecurrentSession` fed the same frames an
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -490,3 +491,40 @@ def test_a_subscriber_set_up_as_joint_trajectory_controller_gets_every_chunk_at_
     finally:
         listener.close()
         stop(proc)
+
+
+G1 = Path(__file__).resolve().parents[2] / "shared" / "robots" / "unitree_g1" / "g1_29dof_rev_1_0.urdf"
+
+
+@pytest.mark.skipif(not G1.exists(), reason="the Unitree G1 URDF lives in ../shared/robots (not committed)")
+def test_the_stylized_stream_mapped_onto_a_real_humanoid(ros_env, model, recorded, tmp_path):
+    """robot_urdf: the node also publishes the robot's joints (JointState, chunks), every one within
+    its limits, as the offline mapping makes them."""
+    from motion_style_ros.core.robot_target import RobotTarget
+
+    proc = start_node("stylizer", ros_env, log=tmp_path / "log", remaps={"__ns": "/robot"}, model=model,
+                      input_fps=FPS, qos_reliability="reliable", qos_depth=1000, robot_urdf=str(G1))
+    listener = Listener("robot_test")
+    try:
+        publisher = listener.node.create_publisher(JointState, "/robot/joint_states", RELIABLE)
+        states = listener.subscribe("/robot/stylized/joint_states", qos=RELIABLE)
+        robot = listener.subscribe("/robot/stylized/robot/joint_states", qos=RELIABLE)
+        chunks = listener.subscribe("/robot/stylized/robot/trajectory", JointTrajectory, RELIABLE)
+        listener.spin_until(lambda: publisher.get_subscription_count() and
+                            listener.subscriptions["/robot/stylized/robot/joint_states"].get_publisher_count(),
+                            "the stylizer", procs=[proc])
+        for stamp_ns, values in recorded[:90]:
+            publisher.publish(message(stamp_ns, LAYOUT.names, values))
+        listener.spin_until(lambda: len(robot) >= 90 and len(chunks) >= 15, "90 robot frames", procs=[proc])
+    finally:
+        listener.close()
+        stop(proc)
+    target = RobotTarget(str(G1))
+    assert list(robot[0].name) == target.names and stamps(robot).tolist() == stamps(states).tolist()
+    q = np.array([m.position for m in robot])
+    assert np.all(q >= target.lower - 1e-9) and np.all(q <= target.upper + 1e-9)
+    expected = [target.step(*LAYOUT.decode(LAYOUT.names, m.position), t * 1e-9)
+                for m, t in zip(states, stamps(states))]
+    assert np.abs(q - np.array(expected)).max() < 1e-6  # the node maps what it stylized
+    for chunk in chunks:
+        check_trajectory_chunk(chunk, target.names)

@@ -21,7 +21,7 @@ from collections import deque
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, PoseStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from rclpy.exceptions import InvalidTopicNameException
@@ -37,6 +37,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh
 from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.nodes import Parameters, PlayerNode, joint_state, run
+from motion_style_ros.core.robot_target import RobotTarget
 from motion_style_ros.runtime.health import health
 from motion_style_ros.runtime.intake import DROP_REASONS, RESTART_REASONS, Bounds, Dropped, Intake
 from motion_style_ros.runtime.trajectory import VELOCITIES, Chunk, Chunker
@@ -61,7 +62,8 @@ class Performer:
     """One performer's topics, session, counters and what its outputs continue from."""
 
     def __init__(self, node: Stylizer, prefix: str, session: RecurrentSession, qos: QoSProfile,
-                 trajectory_qos: QoSProfile, markers: bool, bounds: Bounds, chunker: Chunker) -> None:
+                 trajectory_qos: QoSProfile, markers: bool, bounds: Bounds, chunker: Chunker,
+                 robot: RobotTarget | None = None, robot_chunker: Chunker | None = None) -> None:
         self.prefix = prefix
         self.session = session
         try:
@@ -70,6 +72,14 @@ class Performer:
                                                         self.topic("stylized/trajectory"), trajectory_qos)
             self.markers_out = (node.create_publisher(MarkerArray, self.topic("stylized/markers"), qos)
                                 if markers else None)
+            self.robot, self.robot_chunker = robot, robot_chunker
+            if robot is not None:
+                self.robot_state_out = node.create_publisher(
+                    JointState, self.topic("stylized/robot/joint_states"), qos)
+                self.robot_trajectory_out = node.create_publisher(
+                    JointTrajectory, self.topic("stylized/robot/trajectory"), trajectory_qos)
+                self.robot_base_out = node.create_publisher(
+                    PoseStamped, self.topic("stylized/robot/base_pose"), qos)
         except InvalidTopicNameException as exc:
             raise MotionStyleError(f"parameter performers: {exc}") from None
         self.input = node.resolve_topic_name(self.topic("joint_states"))
@@ -103,7 +113,9 @@ class Performer:
             node.destroy_subscription(self.subscription)
             self.subscription = None
         if publishers:
-            for pub in (self.state_out, self.trajectory_out, self.markers_out):
+            robot = ((self.robot_state_out, self.robot_trajectory_out, self.robot_base_out)
+                     if self.robot is not None else ())
+            for pub in (self.state_out, self.trajectory_out, self.markers_out, *robot):
                 if pub is not None:
                     node.destroy_publisher(pub)
 
@@ -114,6 +126,9 @@ class Performer:
         """Forget the stream: the next frame may have any stamp and starts a new trajectory."""
         self.intake.clear()
         self.chunker.clear()
+        if self.robot is not None:
+            self.robot.reset()
+            self.robot_chunker.clear(np.zeros(len(self.robot.names), dtype=bool))
         self.chunk_frame_id = ""
         self.delay.clear()
 
@@ -176,6 +191,10 @@ class StylizerBase(Parameters):
                                   "JointTrajectoryController subscribes reliably)")
         self.max_latency_ms = self.param("max_latency_ms", 20.0, "diagnostics: a processing latency "
                                          "p99 over this is a warning", 0.1, 1e4)
+        robot_urdf = self.param("robot_urdf", "", "a humanoid robot's URDF: the stylized motion is also "
+                                "mapped onto its joints (stylized/robot/...); '' = none")
+        robot_map = self.param("robot_map", "", "robot_urdf: a YAML body map naming its knee, elbow, "
+                               "... joints where the names do not say; '' = found from the URDF")
         publish_markers = self.param("publish_markers", False, "publish the stylized skeleton as "
                                      "a visualization_msgs/MarkerArray on stylized/markers")
         threads = self.param("threads", 1, "ONNX Runtime threads per performer", 1, 16)
@@ -262,10 +281,13 @@ class StylizerBase(Parameters):
                                       "between two frames; faster is dropped", 1e-3, 1e6),
             max_angle=self.param("max_angle", defaults.max_angle, "rad beyond which an angle is "
                                  "dropped as no rotation", 1.0, 1e9))
+        robots = ([RobotTarget(robot_urdf, robot_map or None) for _ in prefixes] if robot_urdf
+                  else [None] * len(prefixes))
         self.performers = [
             Performer(self, prefix, s, qos, trajectory_qos, publish_markers, bounds,
-                      Chunker(trajectory_points, self.period_ns, s.gap_seconds, velocities))
-            for prefix, s in zip(prefixes, sessions)]
+                      Chunker(trajectory_points, self.period_ns, s.gap_seconds, velocities),
+                      robot, Chunker(trajectory_points, self.period_ns, s.gap_seconds, velocities))
+            for prefix, s, robot in zip(prefixes, sessions, robots)]
         self._reference = None  # the codes of the reference parameter's clip, once read
         if self.settings["reference"]:
             self._staged[self.settings["reference"]] = self._read_reference(self.settings["reference"])
@@ -446,6 +468,8 @@ class StylizerBase(Parameters):
         self._add_point(p, frame.stamp_ns, out, frame_id)
         if p.markers_out is not None:
             p.markers_out.publish(self._markers(p, rotations, root, stamp))
+        if p.robot is not None:
+            self._robot(p, rotations, root, stamp, frame.stamp_ns, frame_id)
         p.session.catch_up()  # pipelined: the model frames of this input, now that it is sent on
 
     def _restart(self, p: Performer, reason: str, why: str) -> None:
@@ -456,6 +480,21 @@ class StylizerBase(Parameters):
         p.clear()
         p.counts[f"restarted_{reason}"] += 1
         self.get_logger().warning(f"{p.input}: stream restarted ({reason.replace('_', ' ')}): {why}")
+
+    def _robot(self, p: Performer, rotations: np.ndarray, root: np.ndarray, stamp, stamp_ns: int,
+               frame_id: str) -> None:
+        """The stylized frame on the robot: its joints (JointState, trajectory chunks) and base."""
+        q = p.robot.step(rotations, root, ns_seconds(stamp_ns))
+        p.robot_state_out.publish(joint_state(p.robot.names, q, stamp, frame_id))
+        for chunk in p.robot_chunker.add(stamp_ns, q):
+            p.robot_trajectory_out.publish(trajectory(p.robot.names, chunk, frame_id))
+        position, quat = p.robot.base_pose
+        pose = PoseStamped()
+        pose.header.stamp, pose.header.frame_id = stamp, frame_id or "world"
+        pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = position.tolist()
+        o = pose.pose.orientation
+        o.w, o.x, o.y, o.z = quat.tolist()
+        p.robot_base_out.publish(pose)
 
     def _use_names(self, p: Performer, names) -> None:
         """Where the layout's names sit in this message (worked out again when they change); a
@@ -482,17 +521,12 @@ class StylizerBase(Parameters):
         """Publish the chunk that is still filling."""
         for chunk in p.chunker.flush():
             self._publish_chunk(p, chunk)
+        if p.robot is not None:
+            for chunk in p.robot_chunker.flush():
+                p.robot_trajectory_out.publish(trajectory(p.robot.names, chunk, p.chunk_frame_id))
 
     def _publish_chunk(self, p: Performer, chunk: Chunk) -> None:
-        """One JointTrajectory; its header.stamp stays zero ("start on receipt" for
-        JointTrajectoryController: the frames are already past)."""
-        msg = JointTrajectory(joint_names=list(p.names))
-        msg.header.frame_id = p.chunk_frame_id
-        for offset, positions, velocities in zip(chunk.times_ns, chunk.positions, chunk.velocities):
-            msg.points.append(JointTrajectoryPoint(
-                positions=positions.tolist(), velocities=[] if velocities is None else velocities.tolist(),
-                time_from_start=Duration(sec=offset // 1_000_000_000, nanosec=offset % 1_000_000_000)))
-        p.trajectory_out.publish(msg)
+        p.trajectory_out.publish(trajectory(p.names, chunk, p.chunk_frame_id))
 
     def _markers(self, p: Performer, rotations: np.ndarray, root: np.ndarray, stamp) -> MarkerArray:
         """The stylized skeleton's bones below the pelvis as one LINE_LIST, in REP-103 axes."""
@@ -594,6 +628,18 @@ class StylizerBase(Parameters):
             destroy(thing)
         self.performers, self._pending, self._staged = [], deque(), {}
         self.active = False
+
+
+def trajectory(names, chunk: Chunk, frame_id: str) -> JointTrajectory:
+    """One JointTrajectory; its header.stamp stays zero ("start on receipt" for
+    JointTrajectoryController: the frames are already past)."""
+    msg = JointTrajectory(joint_names=list(names))
+    msg.header.frame_id = frame_id
+    for offset, positions, velocities in zip(chunk.times_ns, chunk.positions, chunk.velocities):
+        msg.points.append(JointTrajectoryPoint(
+            positions=positions.tolist(), velocities=[] if velocities is None else velocities.tolist(),
+            time_from_start=Duration(sec=offset // 1_000_000_000, nanosec=offset % 1_000_000_000)))
+    return msg
 
 
 def ns_seconds(ns: int) -> float:
