@@ -1,0 +1,115 @@
+"""Faults with real processes: the performer killed and started again mid-stream (the stylizer
+goes on by itself), the stylizer killed and started again (the recorder's bag stays whole and
+readable, the performer goes on), and a stream whose rate changes between 30, 60 and 120 Hz."""
+
+import signal
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers import Listener, message, stamps, start_node, stop
+from sensor_msgs.msg import JointState
+
+from motion_style_ros.core.synthetic import synthetic_motion
+from motion_style_ros.io import bags
+from motion_style_ros.io.joint_state import JointStateLayout
+
+RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+LAYOUT = JointStateLayout.canonical()
+STYLES = ["active", "elderly", "normal"]
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    pytest.importorskip("torch")  # writing the stand-in model needs it; the nodes do not
+    from motion_style_ros.training.recurrent import export_random_model
+
+    path = tmp_path_factory.mktemp("faults") / "style_erd.onnx"
+    export_random_model(path, STYLES, seed=0)
+    return path
+
+
+def kill(proc):
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(20)
+
+
+def test_the_stylizer_resumes_by_itself_when_its_performer_restarts(model, ros_env, tmp_path):
+    stylizer = start_node("stylizer", ros_env, log=tmp_path / "stylizer.log", model=model, input_fps=60.0)
+    performer = start_node("synthetic_performer", ros_env, log=tmp_path / "performer.log", fps=60)
+    listener = Listener("fault_performer")
+    try:
+        out = listener.subscribe("stylized/joint_states")
+        diagnostics = listener.subscribe("/diagnostics", DiagnosticArray, RELIABLE)
+        listener.spin_until(lambda: len(out) > 60, "a second of stylized frames", procs=[stylizer])
+        kill(performer)
+        listener.spin_for(1.0)
+        before = len(out)
+        performer = start_node("synthetic_performer", ros_env, log=tmp_path / "performer2.log", fps=60)
+        # its walk starts again at the origin, after a pause longer than the session's gap time
+        listener.spin_until(lambda: len(out) > before + 60, "stylized frames of the new performer",
+                            procs=[stylizer])
+        assert stylizer.poll() is None
+        listener.spin_for(1.2)
+        values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
+        assert int(values["gaps"]) >= 1 and float(values["longest_gap_s"]) >= 1.0  # the pause, seen
+    finally:
+        listener.close()
+        for proc in (performer, stylizer):
+            stop(proc)
+
+
+def test_a_killed_stylizer_leaves_the_recording_whole_and_starts_again(model, ros_env, tmp_path):
+    bag = tmp_path / "bag"
+    performer = start_node("synthetic_performer", ros_env, log=tmp_path / "performer.log", fps=60)
+    recorder = start_node("recorder", ros_env, log=tmp_path / "recorder.log", bag=str(bag),
+                          topics=["joint_states", "stylized/joint_states"])
+    stylizer = start_node("stylizer", ros_env, log=tmp_path / "stylizer.log", model=model, input_fps=60.0)
+    listener = Listener("fault_stylizer")
+    try:
+        inputs = listener.subscribe("joint_states")
+        out = listener.subscribe("stylized/joint_states")
+        listener.spin_until(lambda: len(out) > 60, "stylized frames", procs=[stylizer, recorder])
+        kill(stylizer)
+        listener.spin_for(0.5)
+        before = len(out)
+        stylizer = start_node("stylizer", ros_env, log=tmp_path / "stylizer2.log", model=model, input_fps=60.0)
+        listener.spin_until(lambda: len(out) > before + 60, "stylized frames after the restart",
+                            procs=[stylizer, recorder])
+        received = len(inputs)
+        assert performer.poll() is None and recorder.poll() is None
+    finally:
+        listener.close()
+        for proc in (stylizer, recorder, performer):
+            stop(proc)
+    recorded = bags.read_joint_states(bag, ["/joint_states"])
+    styled = bags.read_joint_states(bag, ["/stylized/joint_states"])
+    # the performer never stopped: the recorder has its stream throughout (best effort, loopback)
+    assert len(recorded) >= 0.9 * received and len(styled) > 120
+    steps = np.diff(np.array([r.stamp_ns for r in recorded]))
+    assert steps.max() < 0.2e9  # no hole in the input's recording while the stylizer was down
+
+
+def test_a_stream_switching_between_30_60_and_120_hz_is_stylized_throughout(model, ros_env, tmp_path):
+    stylizer = start_node("stylizer", ros_env, log=tmp_path / "stylizer.log", model=model, input_fps=60.0,
+                          qos_reliability="reliable", qos_depth=1000)
+    listener = Listener("fault_rates")
+    try:
+        publisher = listener.node.create_publisher(JointState, "joint_states", RELIABLE)
+        out = listener.subscribe("stylized/joint_states", qos=RELIABLE)
+        listener.spin_until(lambda: publisher.get_subscription_count(), "the stylizer", procs=[stylizer])
+        t0, sent = 1_700_000_000 * 10**9, []
+        t = 0.0
+        for rate in (30.0, 120.0, 60.0, 30.0, 120.0):  # one second each, the walk going on
+            motion = synthetic_motion("walk", rate, 1.0, start=t)
+            for k, values in enumerate(LAYOUT.encode_motion(motion)):
+                sent.append(t0 + round((t + k / rate) * 1e9))
+                publisher.publish(message(sent[-1], LAYOUT.names, values))
+            t += 1.0
+        listener.spin_until(lambda: len(out) >= len(sent), "every frame stylized", procs=[stylizer])
+        assert stamps(out).tolist() == sent
+        assert np.isfinite(np.array([m.position for m in out])).all()
+    finally:
+        listener.close()
+        stop(stylizer)
