@@ -67,3 +67,15 @@ def datasets():
         pytest.skip(f"motion datasets not available ({script} not found)")
     out = subprocess.run(["bash", str(script)], capture_output=True, text=True, check=True)
     return Path(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def small_model(tmp_path_factory):
+    """A random-weight Style-ERD model with the real ONNX interface and three styles (active,
+    elderly, normal), for tests of node behaviour that must not depend on the shipped model."""
+    pytest.importorskip("torch")  # writing the stand-in model needs it; the nodes do not
+    from motion_style_ros.training.recurrent import export_random_model
+
+    path = tmp_path_factory.mktemp("small_model") / "style_erd.onnx"
+    export_random_model(path, ["active", "elderly", "normal"], seed=0)
+    return path

@@ -17,17 +17,11 @@ from motion_style_ros.io.joint_state import JointStateLayout
 
 RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 LAYOUT = JointStateLayout.canonical()
-STYLES = ["active", "elderly", "normal"]
 
 
 @pytest.fixture(scope="module")
-def model(tmp_path_factory):
-    pytest.importorskip("torch")  # writing the stand-in model needs it; the nodes do not
-    from motion_style_ros.training.recurrent import export_random_model
-
-    path = tmp_path_factory.mktemp("faults") / "style_erd.onnx"
-    export_random_model(path, STYLES, seed=0)
-    return path
+def model(small_model):
+    return small_model
 
 
 def kill(proc):

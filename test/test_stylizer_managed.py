@@ -13,19 +13,13 @@ from motion_style_ros.io.joint_state import JointStateLayout
 
 RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 LAYOUT = JointStateLayout.canonical()
-STYLES = ["active", "elderly", "normal"]
 T0 = 1_700_000_000 * 10**9
 PERIOD = 33_333_333
 
 
 @pytest.fixture(scope="module")
-def model(tmp_path_factory):
-    pytest.importorskip("torch")  # writing the stand-in model needs it; the node does not
-    from motion_style_ros.training.recurrent import export_random_model
-
-    path = tmp_path_factory.mktemp("managed") / "style_erd.onnx"
-    export_random_model(path, STYLES, seed=0)
-    return path
+def model(small_model):
+    return small_model
 
 
 def test_lifecycle_transitions_with_a_real_process(model, ros_env, tmp_path):
