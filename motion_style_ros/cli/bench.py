@@ -1,6 +1,8 @@
 """``motion-style bench``: how fast the stylizers run here, per frame and in performers."""
 
-DEFAULT_MODEL = "style_erd.onnx"
+from motion_style_ros.runtime.backends import BACKENDS
+
+DEFAULT_MODEL = BACKENDS["recurrent"].default_model
 MAX_PERFORMERS = 4096  # where the search for the real-time limit stops
 
 
@@ -67,7 +69,7 @@ def add_parser(subparsers):
                        help="performers at the highest rate, each on its own topics (default: 4)")
     nodes.add_argument("--seconds", type=float, default=10.0,
                        help="measured stream time per row in seconds (default: 10)")
-    nodes.add_argument("--backend", default="recurrent", choices=("recurrent", "stgcn"),
+    nodes.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
                        help="the node's backend (default: recurrent)")
     nodes.add_argument("--lookahead", type=int, default=8,
                        help="stgcn: model frames each output waits for (default: 8)")
@@ -332,6 +334,7 @@ def run_nodes(args) -> int:
 
     from motion_style_ros.cli.live import LiveGraph
     from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.backends import backend, with_feature
     from motion_style_ros.runtime.onnx_model import read_card
 
     try:
@@ -340,17 +343,19 @@ def run_nodes(args) -> int:
         raise MotionStyleError(f"--rates takes numbers separated by commas, got {args.rates!r}") from None
     if min(rates) <= 0 or args.seconds <= 0 or args.performers < 1:
         raise MotionStyleError("--rates, --seconds and --performers must be positive")
-    if args.reference and args.backend != "stgcn":
-        raise MotionStyleError("--reference needs --backend stgcn (its style encoder reads the clip)")
+    spec = backend(args.backend)
+    if args.reference and not spec.reference_clips:
+        raise MotionStyleError(f"--reference needs --backend {' or '.join(with_feature('reference_clips'))} "
+                               "(its style encoder reads the clip)")
     from motion_style_ros.runtime.offline import default_model
 
     path = _model(args.model or default_model(args.backend)).resolve()
     card = read_card(path)
     _print_model(path, card)
     settings = {"backend": args.backend, "pipelined": args.pipelined}
-    if args.backend == "stgcn":
+    if spec.lookahead:
         settings["lookahead"] = args.lookahead
-        print(f"stgcn with lookahead {args.lookahead}: each output shows the motion of "
+        print(f"{args.backend} with lookahead {args.lookahead}: each output shows the motion of "
               f"{1000 * args.lookahead / card['fps']:.0f} ms earlier (not in the latencies below, "
               "which run from the input's stamp to the output's arrival)")
     rows = [(node, rate, 1) for rate in rates for node in ("relay", "stylizer")]
@@ -394,13 +399,11 @@ def run_nodes(args) -> int:
 
 def _output_delay(path, args, rate: float) -> float:
     """The stylizer's own output latency (s) at ``rate``, as its session works it out."""
-    from motion_style_ros.runtime.session import RecurrentSession
-    from motion_style_ros.runtime.windowed import WindowedSession
+    from motion_style_ros.runtime.backends import backend
 
-    if args.backend == "stgcn":
-        return WindowedSession(path, input_fps=rate, lookahead=args.lookahead,
-                               pipelined=args.pipelined).latency
-    return RecurrentSession(path, input_fps=rate, pipelined=args.pipelined).latency
+    spec = backend(args.backend)
+    extra = {"lookahead": args.lookahead} if spec.lookahead else {}
+    return spec.session_class()(path, input_fps=rate, pipelined=args.pipelined, **extra).latency
 
 
 NODE_WARMUP = 2.0  # s of streaming before measuring: ONNX Runtime's first runs, DDS settling

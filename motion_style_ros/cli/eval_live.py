@@ -120,10 +120,9 @@ def run(args: argparse.Namespace, backend: str) -> int:
                            **settings},
               "clips": rows, "summary": _summary(rows)}
     if not args.no_proportions:
-        from motion_style_ros.runtime.session import RecurrentSession
-        from motion_style_ros.runtime.windowed import WindowedSession
+        from motion_style_ros.runtime.backends import backend as spec
 
-        Session = WindowedSession if backend == "stgcn" else RecurrentSession
+        Session = spec(backend).session_class()
         clips = [live.live_input(p) for p in paths]
         report["proportions"] = live.proportions(
             lambda fps: Session(args.model or default_model(backend), input_fps=fps, threads=args.threads,
@@ -141,12 +140,13 @@ def run(args: argparse.Namespace, backend: str) -> int:
 
 def _delay(backend: str, fps: float) -> int:
     """Input frames by which the node's output trails the offline output of the same clip."""
-    if backend != "stgcn":
+    from motion_style_ros.runtime.backends import backend as spec
+
+    if not spec(backend).lookahead:
         return 0  # both go through step() with the same latency
     from motion_style_ros.runtime.offline import default_model, node_settings
-    from motion_style_ros.runtime.windowed import WindowedSession
 
-    session = WindowedSession(default_model(backend), input_fps=fps, **node_settings(backend))
+    session = spec(backend).session_class()(default_model(backend), input_fps=fps, **node_settings(backend))
     return int(round(session.latency * fps))
 
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 
+from motion_style_ros.runtime.backends import BACKENDS
+
 DEFAULT_STYLES = ("elderly", "youthful")
 
 
@@ -37,7 +39,7 @@ def add_parser(subparsers) -> None:
                    help=f"target style (repeat for several; default: {', '.join(DEFAULT_STYLES)})")
     c.add_argument("--unstyled", action="store_true",
                    help="map the neutral clips themselves instead of stylized outputs")
-    c.add_argument("--backend", default="recurrent", choices=("recurrent", "stgcn"),
+    c.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
                    help="stylizer backend (default: recurrent)")
     c.add_argument("--model", default=None, help="model file (default: the backend's shipped model)")
     c.add_argument("--clips", type=int, default=None, metavar="N",
@@ -56,7 +58,7 @@ def add_parser(subparsers) -> None:
     m.add_argument("--map", default=None, metavar="YAML", help="body map (knee/elbow joint names)")
     m.add_argument("--out", required=True, metavar="OUT.csv|OUT.npz", help="where to write")
     m.add_argument("--style", default=None, help="stylize into this style first")
-    m.add_argument("--backend", default="recurrent", choices=("recurrent", "stgcn"),
+    m.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
                    help="stylizer backend for --style (default: recurrent)")
     m.set_defaults(func=run_map)
 

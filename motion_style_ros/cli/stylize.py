@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from motion_style_ros.runtime.backends import BACKENDS
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
@@ -27,7 +29,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--seed-spread", type=float, default=1.0, metavar="S",
                    help="stgcn backend: how much seeds differ, 0 to 4 (default: 1, as trained)")
     p.add_argument("--alpha", type=float, default=1.0, help="style strength in [0, 1] (default: 1)")
-    p.add_argument("--backend", default="recurrent", help="stylizer backend (default: recurrent)")
+    p.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
+                   help="stylizer backend (default: recurrent)")
     p.add_argument("--model", default=None, help="model file (default: the backend's shipped model)")
     p.add_argument("--render", metavar="OUT.png|OUT.gif", default=None,
                    help="also draw the input beside every output")
@@ -40,17 +43,20 @@ def run(args: argparse.Namespace) -> int:
 
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.io import bvh, render
+    from motion_style_ros.runtime.backends import backend, with_feature
     from motion_style_ros.runtime.offline import canonical_clip, stylizer
 
     if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
         raise MotionStyleError(f"{args.render}: --render must end in .png or .gif")
-    if args.backend != "stgcn" and (args.reference or args.seed or args.seed_spread != 1.0):
-        raise MotionStyleError(f"--reference, --seed and --seed-spread need --backend stgcn (the "
-                               f"{args.backend} backend has no style codes)")
+    spec = backend(args.backend)
+    if not spec.latent_seeds and (args.reference or args.seed or args.seed_spread != 1.0):
+        raise MotionStyleError(f"--reference, --seed and --seed-spread need --backend "
+                               f"{' or '.join(with_feature('latent_seeds'))} (the {args.backend} backend "
+                               "has no style codes)")
     if not args.style and not args.reference:
         raise MotionStyleError("give a target --style (or, with --backend stgcn, a --reference clip)")
     source = canonical_clip(args.input)
-    if args.backend == "stgcn":
+    if spec.reference_clips:
         from motion_style_ros.runtime.offline import windowed
 
         reference = canonical_clip(args.reference) if args.reference else None

@@ -38,15 +38,15 @@ from motion_style_ros.io import bvh
 from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.nodes import Parameters, PlayerNode, joint_state, run
 from motion_style_ros.core.robot_target import RobotTarget
+from motion_style_ros.runtime.backends import BACKENDS, with_feature
 from motion_style_ros.runtime.health import health
 from motion_style_ros.runtime.intake import DROP_REASONS, RESTART_REASONS, Bounds, Dropped, Intake
 from motion_style_ros.runtime.trajectory import VELOCITIES, Chunk, Chunker
 from motion_style_ros.runtime.offline import NODE_SETTINGS, canonical_clip, default_model
 from motion_style_ros.runtime.session import RecurrentSession, describe_calibration
-from motion_style_ros.runtime.windowed import MAX_SPREAD, WindowedSession
+from motion_style_ros.runtime.windowed import MAX_SPREAD
 
 NAME = "stylizer"
-BACKENDS = ("recurrent", "stgcn")  # Style-ERD frame by frame; ST-GCN windows blended by overlap-add
 # Parameters that change live, with their types (checked by the node: rclpy's own message would
 # name the types by number).
 DYNAMIC = {"target_style": str, "alpha": float, "mix_style": str, "mix_weight": float,
@@ -214,9 +214,10 @@ class StylizerBase(Parameters):
                                    f"{', '.join(VELOCITIES)}")
         if backend not in BACKENDS:
             raise MotionStyleError(f"parameter backend is {backend!r}; allowed: {', '.join(BACKENDS)}")
-        if bank and backend != "stgcn":
-            raise MotionStyleError(f"parameter style_bank needs backend stgcn (style codes); {backend} "
-                                   "has a fixed set of styles")
+        self.spec = spec = BACKENDS[backend]
+        if bank and not spec.style_bank:
+            raise MotionStyleError(f"parameter style_bank needs backend {' or '.join(with_feature('style_bank'))} "
+                                   f"(style codes); {backend} has a fixed set of styles")
         if not prefixes or len(set(prefixes)) != len(prefixes):
             raise MotionStyleError(f"parameter performers is {list(prefixes)}; give distinct topic "
                                    "prefixes, e.g. ['alice', 'bob'] (or [''] for one performer)")
@@ -225,16 +226,16 @@ class StylizerBase(Parameters):
         model = model or default_model(backend)
         common = dict(input_fps=input_fps or None, blend_seconds=blend, threads=threads,
                       follow_seconds=follow or None, foot_lock=foot_lock, pipelined=pipelined)
-        if backend == "stgcn":
-            sessions = [WindowedSession(model, **common, window=window or None, hop=hop,
-                                        lookahead=lookahead, bank=bank or None) for _ in prefixes]
+        if spec.lookahead:
+            sessions = [spec.session_class()(model, **common, window=window or None, hop=hop,
+                                             lookahead=lookahead, bank=bank or None) for _ in prefixes]
         else:
-            session = RecurrentSession(model, **common)
+            session = spec.session_class()(model, **common)
             # Performers' model frames fall on different input frames (one in input_fps / model
             # fps runs the model), so that streams in step do not all run it on the same one.
             spread = max(1, round(session.input_fps / session.fps))
             sessions = [session] + [
-                RecurrentSession(model, **common, phase_seconds=(k % spread) / session.input_fps)
+                spec.session_class()(model, **common, phase_seconds=(k % spread) / session.input_fps)
                 for k in range(1, len(prefixes))]
         session = sessions[0]
         self.styles = session.styles
@@ -318,9 +319,9 @@ class StylizerBase(Parameters):
                 key == "mix_style" and value == ""):
             return (f"unknown style {value!r}; this model knows: {', '.join(self.styles)}"
                     + (" ('' = no mix)" if key == "mix_style" else ""))
-        if key == "reference" and value and self.backend != "stgcn":
-            return (f"a reference clip needs backend stgcn (its style encoder); this node runs "
-                    f"{self.backend}: '' is the only value allowed")
+        if key == "reference" and value and not self.spec.reference_clips:
+            return (f"a reference clip needs backend {' or '.join(with_feature('reference_clips'))} (its "
+                    f"style encoder); this node runs {self.backend}: '' is the only value allowed")
         return None
 
     def _on_set_parameters(self, parameters) -> SetParametersResult:
@@ -400,7 +401,7 @@ class StylizerBase(Parameters):
         replaces the target style's), without being read again."""
         settings = {**self.settings, **changes}
         reference = None
-        if self.backend == "stgcn" and settings["reference"] and (
+        if self.spec.reference_clips and settings["reference"] and (
                 {"reference", "target_style", "latent_seed", "seed_spread"} & changes.keys()):
             reference = (self._staged.pop(settings["reference"]) if "reference" in changes
                          else self._reference)
@@ -413,7 +414,7 @@ class StylizerBase(Parameters):
                 p.session.set_alpha(changes["alpha"])
             if "mix_style" in changes or "mix_weight" in changes:
                 p.session.set_mix(settings["mix_style"] or None, settings["mix_weight"])
-            if self.backend != "stgcn":
+            if not self.spec.latent_seeds:
                 continue
             if {"latent_seed", "seed_spread"} & changes.keys() or (
                     "reference" in changes and not settings["reference"]):

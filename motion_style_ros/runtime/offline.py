@@ -47,11 +47,9 @@ def canonical_clip(path: str) -> "Motion":
 
 def default_model(backend: str) -> str:
     """The shipped model file of a backend."""
-    if backend == "stgcn":
-        from motion_style_ros.runtime.windowed import DEFAULT_MODEL
+    from motion_style_ros.runtime.backends import backend as spec
 
-        return DEFAULT_MODEL
-    return "style_erd.onnx"
+    return spec(backend).default_model
 
 
 def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1, **session) -> Stylizer:
@@ -98,7 +96,9 @@ NODE_SETTINGS = {"follow_seconds": 2.0, "lookahead": 8}
 
 def node_settings(backend: str) -> dict:
     """The :data:`NODE_SETTINGS` a backend's session takes."""
-    return {k: v for k, v in NODE_SETTINGS.items() if k != "lookahead" or backend == "stgcn"}
+    from motion_style_ros.runtime.backends import backend as spec
+
+    return {k: v for k, v in NODE_SETTINGS.items() if k != "lookahead" or spec(backend).lookahead}
 
 
 def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1,
@@ -106,11 +106,13 @@ def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads
     """A backend's offline stylizer; ``seed_spread`` (stgcn only): see ``WindowedSession``;
     ``session``: more session settings (e.g. :func:`node_settings`)."""
     from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.backends import backend as spec
+    from motion_style_ros.runtime.backends import with_feature
 
-    if backend not in STYLIZERS:
-        raise MotionStyleError(f"unknown backend {backend!r}; choose one of {', '.join(STYLIZERS)}")
+    spec(backend)  # an unknown name: one line naming the backends
     if seed_spread is None:
         return STYLIZERS[backend](model=model, alpha=alpha, threads=threads, **session)
-    if backend != "stgcn":
-        raise MotionStyleError(f"a seed spread needs backend stgcn (latent seeds); {backend} has none")
+    if not spec(backend).latent_seeds:
+        raise MotionStyleError(f"a seed spread needs backend {' or '.join(with_feature('latent_seeds'))} "
+                               f"(latent seeds); {backend} has none")
     return stgcn(model=model, alpha=alpha, threads=threads, seed_spread=seed_spread, **session)

@@ -1,0 +1,47 @@
+"""The stylizer backends: one entry each, asked by every caller (node, CLI, evaluation, bench)
+instead of comparing backend names. Adding a backend is one entry here, its session (model step)
+module, its trainer and its card."""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+from motion_style_ros.errors import MotionStyleError
+
+
+@dataclass(frozen=True)
+class Backend:
+    name: str
+    summary: str
+    default_model: str  # the shipped model's file name in models/
+    session: str  # "module:Class" of its streaming session (imported when first needed)
+    latent_seeds: bool = False  # latent_seed / seed_spread change its style codes
+    reference_clips: bool = False  # a reference clip's style code can replace a style's
+    style_bank: bool = False  # styles enrolled from clips (motion-style style add)
+    lookahead: bool = False  # windows: outputs wait for lookahead model frames
+
+    def session_class(self) -> type:
+        module, name = self.session.split(":")
+        return getattr(importlib.import_module(module), name)
+
+
+BACKENDS: dict[str, Backend] = {
+    "recurrent": Backend("recurrent", "Style-ERD, frame by frame", "style_erd.onnx",
+                         "motion_style_ros.runtime.session:RecurrentSession"),
+    "stgcn": Backend("stgcn", "ST-GCN windows blended by overlap-add, latent seeds and reference clips",
+                     "stgcn.onnx", "motion_style_ros.runtime.windowed:WindowedSession",
+                     latent_seeds=True, reference_clips=True, style_bank=True, lookahead=True),
+}
+
+
+def backend(name: str) -> Backend:
+    """The backend called ``name``, or a one-line error naming the ones there are."""
+    if name not in BACKENDS:
+        raise MotionStyleError(f"unknown backend {name!r}; allowed: {', '.join(BACKENDS)}")
+    return BACKENDS[name]
+
+
+def with_feature(feature: str) -> list[str]:
+    """The backends that have ``feature`` (a flag of :class:`Backend`), e.g. for an error message."""
+    return [b.name for b in BACKENDS.values() if getattr(b, feature)]
