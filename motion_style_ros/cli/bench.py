@@ -82,6 +82,9 @@ def add_parser(subparsers):
                             "performer against the longest gap between two inputs (the clip is read "
                             "off the streams' thread)")
     nodes.set_defaults(func=run_nodes)
+    from motion_style_ros.cli import soak
+
+    soak.add_parser(targets)
     recurrent.add_argument("--model", default=DEFAULT_MODEL,
                            help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
     nodes.add_argument("--model", default=None,

@@ -1,0 +1,96 @@
+"""``motion-style bench soak`` (registered by ``cli/bench.py``): performer -> stylizer -> recorder
+for a long time, with the stylizer's memory and CPU sampled every minute, and the dropped frames and
+latency percentiles of each minute; then the recorded bag read back."""
+
+from __future__ import annotations
+
+
+def add_parser(targets) -> None:
+    soak = targets.add_parser(
+        "soak", help="a long run: memory, CPU, drops and latency each minute",
+        description="Start synthetic_performer (at --rate), the stylizer and a recorder of both "
+                    "streams as processes over DDS and let them run for --minutes. Every minute, "
+                    "print the stylizer's resident memory (RSS from /proc) and CPU use, the frames "
+                    "in and out and dropped in that minute (from its /diagnostics) and this "
+                    "process's end-to-end latency percentiles (stamp -> arrival of the stylized "
+                    "frame); at the end, the memory growth after the first minute (warm-up) and "
+                    "the frames in the recorded bag.",
+    )
+    soak.add_argument("--minutes", type=float, default=60.0, help="how long (default: 60)")
+    soak.add_argument("--rate", type=float, default=120.0, help="the performer's rate in Hz (default: 120)")
+    soak.add_argument("--backend", default="recurrent", help="the stylizer's backend (default: recurrent)")
+    soak.add_argument("--out", default="out/soak", help="folder for the bag and the logs (default: out/soak)")
+    soak.set_defaults(func=run)
+
+
+def _rss_mb(pid: int) -> float:
+    with open(f"/proc/{pid}/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS:")) / 1024
+
+
+def run(args) -> int:
+    import json
+    import time
+    from pathlib import Path
+
+    import numpy as np
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import JointState
+
+    from motion_style_ros.cli.bench import _cpu_seconds
+    from motion_style_ros.cli.live import STARTUP_SECONDS, LiveGraph, stamp_ns
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.io import bags
+    from motion_style_ros.runtime.backends import backend
+
+    if args.minutes <= 0 or args.rate <= 0:
+        raise MotionStyleError("--minutes and --rate must be positive")
+    backend(args.backend)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    bag = out / f"bag_{time.strftime('%Y%m%d_%H%M%S')}"
+    rows = []
+    with LiveGraph("motion_style_soak", out / "logs") as graph:
+        stylizer = graph.start("stylizer", backend=args.backend, input_fps=float(args.rate))
+        graph.start("recorder", bag=str(bag), topics=["joint_states", "stylized/joint_states"])
+        graph.start("synthetic_performer", fps=int(args.rate))
+        node = graph.node
+        latencies: list[int] = []
+        node.create_subscription(JointState, "stylized/joint_states",
+                                 lambda msg, info: latencies.append(info["received_timestamp"]
+                                                                    - stamp_ns(msg.header.stamp)),
+                                 qos_profile_sensor_data)
+        status: dict[str, str] = {}
+        node.create_subscription(DiagnosticArray, "/diagnostics", lambda msg: status.update(
+            {kv.key: kv.value for s in msg.status if s.name.startswith("stylizer") for kv in s.values}), 10)
+        graph.spin_until(lambda: len(latencies) > args.rate, "the stylized stream", STARTUP_SECONDS)
+        print(f"{args.rate:g} Hz, {args.backend}; per minute: stylizer RSS (MB), CPU (% of one core), "
+              "frames in / out / dropped in that minute, end-to-end latency p50 / p99 / max (ms)")
+        start, last = time.monotonic(), None
+        cpu0 = (_cpu_seconds(stylizer.pid), start)
+        for minute in range(1, int(np.ceil(args.minutes)) + 1):
+            latencies.clear()
+            graph.spin_for(min(60.0, args.minutes * 60 - (minute - 1) * 60))
+            now = time.monotonic()
+            cpu = 100 * (_cpu_seconds(stylizer.pid) - cpu0[0]) / (now - cpu0[1])
+            cpu0 = (_cpu_seconds(stylizer.pid), now)
+            counts = {k: int(status.get(k, 0)) for k in ("frames_in", "frames_out", "dropped")}
+            delta = {k: counts[k] - (last or {}).get(k, 0) for k in counts} if last else counts
+            last = counts
+            ms = np.array(latencies) / 1e6
+            p50, p99, worst = np.percentile(ms, [50, 99, 100]) if len(ms) else [np.nan] * 3
+            row = {"minute": minute, "rss_mb": round(_rss_mb(stylizer.pid), 1), "cpu_percent": round(cpu, 1),
+                   **delta, "latency_p50_ms": round(p50, 2), "latency_p99_ms": round(p99, 2),
+                   "latency_max_ms": round(worst, 2)}
+            rows.append(row)
+            print(" ".join(f"{k} {v}" for k, v in row.items()), flush=True)
+    recorded = {t: len(bags.read_joint_states(bag, [t])) for t in ("/joint_states", "/stylized/joint_states")}
+    growth = rows[-1]["rss_mb"] - rows[0]["rss_mb"]
+    summary = {"minutes": args.minutes, "rate_hz": args.rate, "rss_growth_after_minute_1_mb": round(growth, 1),
+               "bag_frames": recorded, "rows": rows}
+    (out / "soak.json").write_text(json.dumps(summary, indent=1) + "\n")
+    print(f"memory growth after the first minute: {growth:+.1f} MB; bag {bag}: "
+          f"{recorded['/joint_states']} input and {recorded['/stylized/joint_states']} stylized frames; "
+          f"wrote {out / 'soak.json'}")
+    return 0
