@@ -34,3 +34,23 @@ def test_bench_nodes_measures_every_row(tmp_path, ros_env):
         assert 0 <= int(dropped) < int(frames) and float(cpu) > 0 and float(own) > 0
         # the session's latency at 60 Hz input: one 30 Hz model frame less one input frame
         assert float(delay) == (16.7 if node == "stylizer" else 0.0)
+
+
+def test_bench_soak_samples_every_minute_and_reads_the_bag_back(tmp_path, ros_env):
+    """A 6-second soak: one sample row (memory, CPU, counts, latency) and the bag read back."""
+    import json
+    import re
+
+    result = subprocess.run(
+        [sys.executable, "-m", "motion_style_ros.cli.main", "bench", "soak", "--minutes", "0.1",
+         "--rate", "60", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=400, env=ros_env,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    row = re.search(r"minute 1 rss_mb ([\d.]+) cpu_percent ([\d.]+) frames_in (\d+) frames_out (\d+) "
+                    r"dropped (\d+) latency_p50_ms ([\d.]+)", result.stdout)
+    assert row, result.stdout
+    rss, cpu, frames_in, frames_out, dropped, p50 = map(float, row.groups())
+    assert rss > 50 and cpu > 0 and frames_in >= 200 and frames_out <= frames_in and p50 > 0
+    summary = json.loads((tmp_path / "soak.json").read_text())
+    assert summary["bag_frames"]["/joint_states"] > 200 and summary["bag_frames"]["/stylized/joint_states"] > 200
