@@ -1,8 +1,11 @@
 """motion_style_ros: restyle streaming human motion capture in ROS 2.
 
-Layers, imports pointing downward only: core (numpy) -> io -> models/training (torch) ->
-runtime (onnxruntime) -> evaluation -> nodes (rclpy) -> cli. Importing this package imports
-nothing heavy.
+Layers, each importing only from the ones before it (test/test_layers.py checks it):
+core (numpy, scipy: motion, rotations, features) -> io (files: BVH, bags, layouts, URDF) ->
+runtime (ONNX Runtime sessions, the live intake, trajectories, robot targets) -> evaluation
+(judges, metrics) -> models (torch) -> training (torch; it exports through runtime and names the
+judges of evaluation) -> nodes (rclpy; core, io and runtime only) -> cli (anything, heavy imports
+inside the commands). Importing this package imports nothing heavy.
 """
 
 import os

@@ -500,7 +500,7 @@ G1 = Path(__file__).resolve().parents[2] / "shared" / "robots" / "unitree_g1" / 
 def test_the_stylized_stream_mapped_onto_a_real_humanoid(ros_env, model, recorded, tmp_path):
     """robot_urdf: the node also publishes the robot's joints (JointState, chunks), every one within
     its limits, as the offline mapping makes them."""
-    from motion_style_ros.core.robot_target import RobotTarget
+    from motion_style_ros.runtime.robot_target import RobotTarget
 
     proc = start_node("stylizer", ros_env, log=tmp_path / "log", remaps={"__ns": "/robot"}, model=model,
                       input_fps=FPS, qos_reliability="reliable", qos_depth=1000, robot_urdf=str(G1))

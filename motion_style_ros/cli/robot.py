@@ -103,7 +103,7 @@ def _print(name: str, f: dict, segments: dict) -> None:
 
 
 def _targets(urdfs: list[str], maps: list[str] | None):
-    from motion_style_ros.core.robot_target import RobotTarget
+    from motion_style_ros.runtime.robot_target import RobotTarget
     from motion_style_ros.errors import MotionStyleError
 
     maps = maps or []
@@ -118,7 +118,7 @@ def run_check(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from motion_style_ros.core.robot_target import evaluate
+    from motion_style_ros.runtime.robot_target import evaluate
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.evaluation.unseen import neutral_clips
 

@@ -9,12 +9,38 @@ URDF text, and the robot descriptions this package is tested with ship without m
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from motion_style_ros.core.robot_target import RobotModel, UrdfJoint
 from motion_style_ros.errors import MotionStyleError
+
+
+@dataclass
+class UrdfJoint:
+    name: str
+    kind: str  # URDF joint type
+    parent: str
+    child: str
+    origin: np.ndarray  # (4, 4) child frame in the parent link's at q = 0
+    axis: np.ndarray  # (3,) in the joint frame
+    lower: float
+    upper: float
+    velocity: float  # rad/s (m/s for prismatic); inf when the URDF gives none
+    mimic: bool = False
+
+
+@dataclass
+class RobotModel:
+    """A robot's kinematics as read from a URDF (:func:`motion_style_ros.io.urdf.read`)."""
+
+    name: str
+    source: str
+    links: list[str]
+    joints: list[UrdfJoint]
+    coms: dict[str, np.ndarray] = field(default_factory=dict)  # link -> centre of mass (link frame)
+    shapes: dict[str, np.ndarray] = field(default_factory=dict)  # link -> (N, 3) shape points
 
 
 def _shape_points(geometry, origin: np.ndarray) -> np.ndarray | None:

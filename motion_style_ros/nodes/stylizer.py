@@ -37,7 +37,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh
 from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.nodes import Parameters, PlayerNode, joint_state, run
-from motion_style_ros.core.robot_target import RobotTarget
+from motion_style_ros.runtime.robot_target import RobotTarget
 from motion_style_ros.runtime.backends import BACKENDS, with_feature
 from motion_style_ros.runtime.health import health
 from motion_style_ros.runtime.intake import DROP_REASONS, RESTART_REASONS, Bounds, Dropped, Intake

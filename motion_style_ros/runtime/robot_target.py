@@ -81,6 +81,7 @@ from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion, forward_kinematics
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io.urdf import RobotModel, read
 
 ACTUATED = ("revolute", "continuous", "prismatic")
 # Streaming contact: a foot is planted while its ankle is within PLANTED_HEIGHT of the planted-ankle
@@ -105,32 +106,6 @@ EVAL_FLOOR_PERCENTILE = 5.0
 EVAL_SPEED = 0.25
 MAP_KEYS = ("left_knee", "right_knee", "left_elbow", "right_elbow", "left_foot", "right_foot")
 _C = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # core (Y up) -> REP-103 (Z up)
-
-
-@dataclass
-class UrdfJoint:
-    name: str
-    kind: str  # URDF joint type
-    parent: str
-    child: str
-    origin: np.ndarray  # (4, 4) child frame in the parent link's at q = 0
-    axis: np.ndarray  # (3,) in the joint frame
-    lower: float
-    upper: float
-    velocity: float  # rad/s (m/s for prismatic); inf when the URDF gives none
-    mimic: bool = False
-
-
-@dataclass
-class RobotModel:
-    """A robot's kinematics as read from a URDF (:func:`motion_style_ros.io.urdf.read`)."""
-
-    name: str
-    source: str
-    links: list[str]
-    joints: list[UrdfJoint]
-    coms: dict[str, np.ndarray] = field(default_factory=dict)  # link -> centre of mass (link frame)
-    shapes: dict[str, np.ndarray] = field(default_factory=dict)  # link -> (N, 3) shape points
 
 
 @dataclass
@@ -337,8 +312,6 @@ class RobotTarget:
                  weights: Weights | None = None, solver: str = "lm", iterations: int = 6,
                  ankle_height: float = ANKLE_HEIGHT) -> None:
         if not isinstance(urdf, RobotModel):
-            from motion_style_ros.io.urdf import read
-
             urdf = read(urdf)
         if solver not in ("lm", "scipy"):
             raise MotionStyleError(f"unknown solver {solver!r}; allowed: lm, scipy")

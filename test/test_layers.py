@@ -1,0 +1,36 @@
+"""The layer rules of motion_style_ros/__init__.py, read from every module's imports: each layer
+imports only the layers before it, torch only in models and training (and inside CLI commands),
+rclpy only in nodes and the CLI."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "motion_style_ros"
+ORDER = ["errors", "core", "io", "runtime", "evaluation", "models", "training", "nodes", "cli"]
+ALLOWED = {layer: set(ORDER[: k + 1]) for k, layer in enumerate(ORDER)}
+ALLOWED["nodes"] = {"errors", "core", "io", "runtime", "nodes"}  # no torch-side layer in a node
+HEAVY = {"torch": {"models", "training", "cli"}, "rclpy": {"nodes", "cli"}}
+
+
+def imports(path: Path):
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            yield from (a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            yield node.module
+
+
+@pytest.mark.parametrize("path", sorted(PACKAGE.rglob("*.py")), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_imports_point_downward(path):
+    layer = path.relative_to(PACKAGE).parts[0].removesuffix(".py")
+    if layer == "__init__":
+        return
+    for name in imports(path):
+        parts = name.split(".")
+        if parts[0] == "motion_style_ros" and len(parts) > 1:
+            assert parts[1] in ALLOWED[layer], f"{layer} imports {name}"
+        for heavy, layers in HEAVY.items():
+            if parts[0] == heavy:
+                assert layer in layers, f"{layer} imports {heavy}"
