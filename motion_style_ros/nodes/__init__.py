@@ -1,4 +1,5 @@
-"""ROS 2 nodes (the only layer besides the CLI that imports rclpy and message packages): thin shells over core, io and runtime.
+"""ROS 2 nodes (with the CLI, the only layer that imports rclpy and message packages): thin shells
+over core, io and runtime.
 
 Every node's ``main`` goes through :func:`run`, so a node that cannot start (bad file, bad
 parameter) logs one error line and exits with status 2, and Ctrl-C ends it cleanly.
