@@ -125,3 +125,16 @@ def test_the_cli_adds_lists_and_removes_styles(model, datasets, tmp_path):
     assert missing.returncode == 2 and "nope.bvh" in missing.stderr
     assert cli("remove", "bouncy").returncode == 0
     assert "no enrolled styles" in cli("list").stdout
+
+
+def test_a_mixed_entry_weighs_every_heads_code_by_the_classifiers_probabilities(model, clips):
+    session = WindowedSession(model, window=16, lookahead=8)
+    entry = session.enrol(clips, TAKES, head=style_bank.MIX)
+    read = [session.reference_codes(m) for m in clips]
+    per_clip = []
+    for codes, logits in read:
+        p = np.exp(logits - logits.max())
+        per_clip.append((p / p.sum()) @ codes)
+    expected = np.average(per_clip, axis=0, weights=[m.n_frames for m in clips])
+    assert entry.head == "mix"
+    np.testing.assert_allclose(entry.code, expected, atol=1e-6)

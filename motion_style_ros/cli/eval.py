@@ -56,6 +56,8 @@ def add_parser(subparsers):
                         "clips restyled into it; writes enrolment.json (--record: as enrolment)")
     p.add_argument("--enrol-clips", type=int, default=4, metavar="K",
                    help="--enrol: clips to enrol from (default: 4)")
+    p.add_argument("--enrol-head", default=None, metavar="HEAD",
+                   help="--enrol: the encoder head to read (a style, or mix; default: the closest)")
     p.add_argument("--controls", action="store_true",
                    help="instead (stgcn): the cost of each lookahead (0, 8, 16, 32), the "
                         "diversity of latent seeds against styles, and how closely alpha 0 "
@@ -235,7 +237,7 @@ def run_enrolment(args: argparse.Namespace) -> int:
     out = Path(args.out)
     judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
     report = windowed.enrolment(args.enrol, out, args.model or windowed.DEFAULT_MODEL, args.enrol_clips,
-                                args.seed, judges, progress=not args.quiet)
+                                args.seed, judges, progress=not args.quiet, head=args.enrol_head)
     print(f"{args.enrol}: enrolled from {', '.join(report['enrolled_from'])} under {report['head']!r}")
     for key in ("bandai2_test", "unseen"):
         print(f"{key}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report[key].items()))

@@ -17,7 +17,8 @@ def add_parser(subparsers):
     add.add_argument("name", metavar="NAME", help="the new style's name (lowercase letters, digits, - and _)")
     add.add_argument("clips", metavar="CLIP.bvh", nargs="+", help="clips of the style")
     add.add_argument("--head", default=None, metavar="STYLE",
-                     help="read the codes under this known style's head (default: the style the "
+                     help="read the codes under this known style's head, or 'mix': every head's "
+                          "code weighted by the classifier's probabilities (default: the style the "
                           "clips are closest to, by the encoder's classifier)")
     add.add_argument("--replace", action="store_true", help="replace NAME if the bank has it")
     listing = actions.add_parser("list", help="the styles of a model and its bank")

@@ -235,7 +235,8 @@ def bench_report(motion: Motion, model: str | Path = DEFAULT_MODEL, hops: tuple[
 
 
 def enrolment(style: str, out_dir: Path, model: str | Path = DEFAULT_MODEL, clips: int = 4, seed: int = 0,
-              judges: list[Judge] | None = None, root: Path | None = None, progress: bool = True) -> dict:
+              judges: list[Judge] | None = None, root: Path | None = None, progress: bool = True,
+              head: str | None = None) -> dict:
     """A style the model does not know, enrolled into a style bank from ``clips`` of its Bandai
     train takes (distinct contents, chosen with ``seed``), then asked of every dataset-2 test take
     (one per content and style) and every CMU and Xia neutral clip: how often each judge panel
@@ -256,7 +257,7 @@ def enrolment(style: str, out_dir: Path, model: str | Path = DEFAULT_MODEL, clip
         raise MotionStyleError(f"style {style!r} has {len(by_content)} train contents, fewer than {clips} clips")
     rng = np.random.default_rng(seed)
     chosen = [by_content[c] for c in sorted(rng.choice(sorted(by_content), clips, replace=False))]
-    entry = session.enrol([m for _, m in load_bandai(chosen, progress=False)], [i.name for i in chosen])
+    entry = session.enrol([m for _, m in load_bandai(chosen, progress=False)], [i.name for i in chosen], head)
     out_dir.mkdir(parents=True, exist_ok=True)
     bank = out_dir / f"enrolled_{style}.json"
     style_bank.write(bank, {style: entry}, session.card["name"], session.model_digest)

@@ -4,7 +4,8 @@ codes (the windowed ST-GCN backend), without retraining.
 A bank is a JSON file beside the model (``stgcn.onnx`` -> ``stgcn_styles.json``; any path with
 ``--bank`` or the node's ``style_bank`` parameter). Each entry is the style encoder's code of the
 enrolled clips, averaged over the clips, under one head of the encoder: the known style the
-encoder's classifier finds the clips closest to (their mean probability), unless the user names one.
+encoder's classifier finds the clips closest to (their mean probability), unless the user names one;
+or (``mix``) every head's code weighted by the classifier's probabilities.
 Codes only mean something to the generator they were made with, so the bank records a digest of
 the model's files and is refused by any other model.
 """
@@ -22,6 +23,7 @@ import numpy as np
 from motion_style_ros.errors import MotionStyleError
 
 VERSION = 1
+MIX = "mix"  # the head of an entry made from every head's code
 _NAME = re.compile(r"[a-z0-9][a-z0-9_-]{0,39}")
 
 
@@ -79,7 +81,7 @@ def read(path: Path, model_digest: str, style_dim: int, styles: list[str]) -> di
                           int(e["frames"]), {str(k): float(v) for k, v in e["probabilities"].items()})
         except (KeyError, TypeError, ValueError):
             raise MotionStyleError(f"{path}: style {name!r} is not a valid entry") from None
-        if len(entry.code) != style_dim or not np.isfinite(entry.code).all() or entry.head not in styles:
+        if len(entry.code) != style_dim or not np.isfinite(entry.code).all() or entry.head not in [*styles, MIX]:
             raise MotionStyleError(f"{path}: style {name!r} has no finite {style_dim}-value code "
                                    "from one of the model's heads")
         entries[check_name(name, styles)] = entry
@@ -106,14 +108,19 @@ def enrol(codes: list[np.ndarray], logits: list[np.ndarray], frames: list[int], 
         raise MotionStyleError("enrolling a style needs at least one clip")
     p = np.stack([np.exp(x - x.max()) / np.exp(x - x.max()).sum() for x in logits])
     mean_p = p.mean(axis=0)
-    if head is None:
-        k = int(np.argmax(mean_p))
-    elif head in styles:
-        k = styles.index(head)
-    else:
-        raise MotionStyleError(f"head {head!r} is not a style of the model: {', '.join(styles)}")
     w = np.asarray(frames, dtype=float)
-    code = (np.stack([c[k] for c in codes]) * w[:, None]).sum(axis=0) / w.sum()
+    if head == MIX:  # each clip's codes under every head, weighted by its own probabilities
+        per_clip = np.einsum("ns,nsd->nd", p, np.stack(codes))
+        name = MIX
+    else:
+        if head is None:
+            k = int(np.argmax(mean_p))
+        elif head in styles:
+            k = styles.index(head)
+        else:
+            raise MotionStyleError(f"head {head!r} is neither {MIX} nor a style of the model: {', '.join(styles)}")
+        per_clip, name = np.stack([c[k] for c in codes]), styles[k]
+    code = (per_clip * w[:, None]).sum(axis=0) / w.sum()
     top = np.argsort(mean_p)[::-1][:3]
-    return Entry(tuple(float(v) for v in code), styles[k], tuple(clips), int(w.sum()),
+    return Entry(tuple(float(v) for v in code), name, tuple(clips), int(w.sum()),
                  {styles[i]: round(float(mean_p[i]), 4) for i in top})

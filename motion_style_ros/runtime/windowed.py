@@ -188,7 +188,11 @@ class WindowedSession(RecurrentSession):
         """:meth:`set_reference` with the clip's :meth:`reference_codes` already made (a node makes
         them off the thread that streams)."""
         k = int(np.argmax(logits)) if style is None else self._controls.style_index(style)
-        head = k if k < self._known else self.styles.index(self.bank[self.styles[k]].head)
+        if k < self._known:
+            head = k
+        else:  # an enrolled style: its own head, or for a mixed entry the clip's closest style
+            enrolled = self.bank[self.styles[k]].head
+            head = int(np.argmax(logits)) if enrolled == style_bank.MIX else self.styles.index(enrolled)
         which = self._controls.which(performer)
         self._begin_codes(which)
         self._codes_to[which, k] = codes[head]
