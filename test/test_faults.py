@@ -80,7 +80,7 @@ def test_a_killed_stylizer_leaves_the_recording_whole_and_starts_again(model, ro
     recorded = bags.read_joint_states(bag, ["/joint_states"])
     styled = bags.read_joint_states(bag, ["/stylized/joint_states"])
     # the performer never stopped: the recorder has its stream throughout (best effort, loopback)
-    assert len(recorded) >= 0.9 * received and len(styled) > 120
+    assert len(recorded) >= 0.9 * received and len(styled) > 60  # discovery of a new publisher takes a moment
     steps = np.diff(np.array([r.stamp_ns for r in recorded]))
     assert steps.max() < 0.2e9  # no hole in the input's recording while the stylizer was down
 
