@@ -287,7 +287,7 @@ class StylizerBase(Parameters):
         self.performers = [
             Performer(self, prefix, s, qos, trajectory_qos, publish_markers, bounds,
                       Chunker(trajectory_points, self.period_ns, s.gap_seconds, velocities),
-                      robot, Chunker(trajectory_points, self.period_ns, s.gap_seconds, velocities))
+                      robot, robot and Chunker(trajectory_points, self.period_ns, s.gap_seconds, velocities))
             for prefix, s, robot in zip(prefixes, sessions, robots)]
         self._reference = None  # the codes of the reference parameter's clip, once read
         if self.settings["reference"]:
@@ -300,7 +300,6 @@ class StylizerBase(Parameters):
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._timer = self.create_timer(1.0, self._publish_diagnostics)
         self._reset_service = self.create_service(Trigger, "~/reset", self._reset)
-        self.active = False
         self.get_logger().info(
             f"stylizing {', '.join(p.input for p in self.performers)} "
             f"with {session.model.path.name} ({backend}, {session.fps:g} Hz model, "
@@ -347,8 +346,8 @@ class StylizerBase(Parameters):
         if not changes or not self.performers:
             return
         path = changes.get("reference")
-        if path and path == self._reverting:
-            self._reverting = None
+        reverting, self._reverting = "reference" in changes and path == self._reverting, None
+        if reverting and path:
             self._staged[path] = self._reference
         elif path:
             self._loads += 1
@@ -609,7 +608,6 @@ class StylizerBase(Parameters):
     def _activate(self) -> None:
         for p in self.performers:
             p.subscribe(self)
-        self.active = True
 
     def _deactivate(self) -> None:
         """Stop listening, so nothing more is published; the streams start afresh on activation."""
@@ -618,7 +616,6 @@ class StylizerBase(Parameters):
             p.destroy(self, publishers=False)
             p.session.restart()
             p.clear()
-        self.active = False
 
     def _cleanup(self) -> None:
         """Free the sessions, publishers, timer and services (a managed node can configure again)."""
@@ -628,7 +625,6 @@ class StylizerBase(Parameters):
                                (self._diagnostics, self.destroy_publisher)):
             destroy(thing)
         self.performers, self._pending, self._staged = [], deque(), {}
-        self.active = False
 
 
 def trajectory(names, chunk: Chunk, frame_id: str) -> JointTrajectory:
