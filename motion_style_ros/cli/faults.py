@@ -1,0 +1,136 @@
+"""``motion-style bench faults`` (registered by ``cli/bench.py``): performer -> stylizer -> recorder,
+the performer and then the stylizer killed (SIGKILL) and started again mid-stream, timed from this
+side; then the recorded bag read back to show what the faults cost the recording."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def add_parser(targets) -> None:
+    faults = targets.add_parser(
+        "faults", help="kill and restart the performer, then the stylizer: recovery times and the bag",
+        description="Start synthetic_performer (at --rate), the stylizer and a recorder of both "
+                    "streams as processes over DDS. --cycles times: kill the performer, start it "
+                    "again --pause seconds later and time its first frame and the first stylized "
+                    "frame after it (the stylizer is not touched); then kill the stylizer, start it "
+                    "again --pause seconds later and time its first stylized frame. At the end, "
+                    "read the recorded bag back: the input's stream with its holes, the stylized "
+                    "frames, and each stylized stamp checked against an input stamp.",
+    )
+    faults.add_argument("--rate", type=float, default=120.0, help="the performer's rate in Hz (default: 120)")
+    faults.add_argument("--cycles", type=int, default=3, help="kill/restart cycles (default: 3)")
+    faults.add_argument("--pause", type=float, default=1.0,
+                        help="seconds between a kill and the restart (default: 1)")
+    faults.add_argument("--backend", default="recurrent", help="the stylizer's backend (default: recurrent)")
+    faults.add_argument("--model", default=None,
+                        help="ONNX model with its card beside it (default: the backend's shipped one)")
+    faults.add_argument("--out", default="out/faults", help="folder for the bag and the logs (default: out/faults)")
+    faults.set_defaults(func=run)
+
+
+def longest_step(stamps_ns: np.ndarray) -> float:
+    """The longest step (s) between consecutive stamps."""
+    return float(np.diff(np.sort(stamps_ns)).max(initial=0)) / 1e9
+
+
+def run(args) -> int:
+    import json
+    import signal
+    import time
+    from pathlib import Path
+
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import JointState
+
+    from motion_style_ros.cli.live import STARTUP_SECONDS, LiveGraph, stamp_ns
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.io import bags
+    from motion_style_ros.runtime.backends import backend
+
+    if args.rate <= 0 or args.cycles < 1 or args.pause < 0:
+        raise MotionStyleError("--rate must be positive, --cycles at least 1, --pause not negative")
+    backend(args.backend)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    bag = out / f"bag_{time.strftime('%Y%m%d_%H%M%S')}"
+    stylizer_params = {"backend": args.backend, "input_fps": float(args.rate),
+                       **({"model": args.model} if args.model else {})}
+    inputs: list[tuple[int, int]] = []  # (stamp, arrival) of every input frame seen here
+    outputs: list[tuple[int, int]] = []  # and of every stylized frame
+    rows = []
+    stylizer_down: list[tuple[int, int]] = []  # from each kill of the stylizer to its first frame back
+    with LiveGraph("motion_style_faults", out / "logs") as graph:
+
+        def restart(name: str, **params) -> tuple[int, int]:
+            """Kill ``name``, wait --pause, start it again; the times (ns) it was killed and started."""
+            killed = time.time_ns()
+            proc = graph.processes.pop(name)
+            proc.send_signal(signal.SIGKILL)
+            proc.wait(STARTUP_SECONDS)
+            graph.spin_for(args.pause)
+            started = time.time_ns()
+            graph.start(name, **params)
+            return killed, started
+
+        def first_after(seen: list[tuple[int, int]], stamp: int, what: str) -> tuple[int, int]:
+            """The first (stamp, arrival) in ``seen`` stamped at or after ``stamp``, waited for."""
+            found: list[tuple[int, int]] = []
+
+            def check() -> bool:
+                found[:] = [x for x in seen[-4 * int(args.rate):] if x[0] >= stamp][:1]
+                return bool(found)
+
+            graph.spin_until(check, what, STARTUP_SECONDS)
+            return found[0]
+
+        graph.start("stylizer", **stylizer_params)
+        graph.start("recorder", bag=str(bag), topics=["joint_states", "stylized/joint_states"])
+        graph.start("synthetic_performer", fps=int(args.rate))
+        node = graph.node
+        for topic, seen in (("joint_states", inputs), ("stylized/joint_states", outputs)):
+            node.create_subscription(
+                JointState, topic, lambda msg, info, seen=seen: seen.append(
+                    (stamp_ns(msg.header.stamp), info["received_timestamp"])), qos_profile_sensor_data)
+        graph.spin_until(lambda: len(outputs) > args.rate, "the stylized stream", STARTUP_SECONDS)
+        print(f"{args.rate:g} Hz, {args.backend}; each fault: SIGKILL, {args.pause:g} s, the process "
+              "started again; times from its start (ms)")
+        for cycle in range(1, args.cycles + 1):
+            graph.spin_for(2.0)
+            _, started = restart("synthetic_performer", fps=int(args.rate))
+            first_in = first_after(inputs, started, "the restarted performer's first frame")
+            first_out = first_after(outputs, first_in[0], "a stylized frame of the restarted performer")
+            graph.spin_for(2.0)
+            killed, started_stylizer = restart("stylizer", **stylizer_params)
+            back = first_after(outputs, started_stylizer, "the restarted stylizer's first frame")
+            stylizer_down.append((killed, back[1]))
+            row = {"cycle": cycle,
+                   "performer_first_frame_ms": round((first_in[1] - started) / 1e6, 1),
+                   "then_first_stylized_ms": round((first_out[1] - first_in[1]) / 1e6, 2),
+                   "stylizer_first_stylized_ms": round((back[1] - started_stylizer) / 1e6, 1)}
+            rows.append(row)
+            print(" ".join(f"{k} {v}" for k, v in row.items()), flush=True)
+        graph.spin_for(1.0)
+    recorded = np.array([r.stamp_ns for r in bags.read_joint_states(bag, ["/joint_states"])])
+    stylized = np.array([r.stamp_ns for r in bags.read_joint_states(bag, ["/stylized/joint_states"])])
+    seen = np.array([stamp for stamp, _ in inputs])
+    missing = ~np.isin(seen, recorded)
+    summary = {
+        "rate_hz": args.rate, "cycles": rows,
+        "bag": {"input_frames": len(recorded), "input_frames_seen_here": len(seen),
+                "seen_here_not_in_bag": int(missing.sum()),
+                "of_them_while_the_stylizer_was_down": int(sum(
+                    (missing & (seen >= a) & (seen <= b)).sum() for a, b in stylizer_down)),
+                "longest_input_step_s": round(longest_step(recorded), 3), "stylized_frames": len(stylized),
+                "stylized_stamps_not_an_input_stamp": int((~np.isin(stylized, np.union1d(recorded, seen))).sum())},
+    }
+    (out / "faults.json").write_text(json.dumps(summary, indent=1) + "\n")
+    b = summary["bag"]
+    print(f"bag {bag}: {b['input_frames']} input frames, {b['seen_here_not_in_bag']} of the "
+          f"{b['input_frames_seen_here']} seen here missing ({b['of_them_while_the_stylizer_was_down']} "
+          f"while the stylizer was down; the rest while the recorder discovered a restarted "
+          f"performer), longest step {b['longest_input_step_s']:g} s "
+          f"(the performer's own restarts: {args.pause:g} s and its start-up); {b['stylized_frames']} "
+          f"stylized frames, {b['stylized_stamps_not_an_input_stamp']} of them not stamped as an input "
+          f"frame; wrote {out / 'faults.json'}")
+    return 0
