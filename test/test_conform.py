@@ -12,6 +12,7 @@ from motion_style_ros.core.synthetic import KINDS, synthetic_motion
 from motion_style_ros.core.retarget import retarget
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.io import bvh, datasets
+from motion_style_ros.io.resources import rotation_stats, rotation_stats_file
 
 
 def typicality(motion, stats) -> float:
@@ -28,7 +29,7 @@ def typicality(motion, stats) -> float:
 
 
 def test_a_retargeted_cmu_walk_keeps_its_positions_and_gets_typical_arms(datasets):
-    stats = datasets_module().rotation_stats()
+    stats = rotation_stats()
     source = bvh.read(datasets / "cmu/data/07/07_01.bvh").to_motion()[1:]
     raw = retarget(source, canonical())
     conformed = conform_rolls(raw, stats)
@@ -45,7 +46,7 @@ def test_a_retargeted_cmu_walk_keeps_its_positions_and_gets_typical_arms(dataset
 
 
 def test_a_bandai_clip_is_nearly_left_as_it_is(datasets):
-    stats = datasets_module().rotation_stats()
+    stats = rotation_stats()
     path = datasets / "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk_normal_001.bvh"
     clip = datasets_module().load_clip(datasets_module().ClipInfo("bandai-2", path, path.stem, "walk",
                                                                   "normal", "", ""))
@@ -56,7 +57,7 @@ def test_a_bandai_clip_is_nearly_left_as_it_is(datasets):
 
 
 def test_grounding_puts_retargeted_cmu_ankles_at_the_training_data_height(datasets):
-    stats = datasets_module().rotation_stats()
+    stats = rotation_stats()
     assert 0.08 < stats["ankle_height"] < 0.15  # Bandai ankles rest about 12 cm up
     raw = retarget(bvh.read(datasets / "cmu/data/07/07_01.bvh").to_motion()[1:], canonical())
     grounded = ground(conform_rolls(raw, stats), stats)
@@ -69,7 +70,7 @@ def test_grounding_puts_retargeted_cmu_ankles_at_the_training_data_height(datase
 
 
 def test_stream_grounding_finds_the_offline_offset_of_a_live_cmu_walk(datasets):
-    stats = datasets_module().rotation_stats()
+    stats = rotation_stats()
     raw = retarget(bvh.read(datasets / "cmu/data/07/07_01.bvh").to_motion()[1:], canonical())
     ankles = raw.global_positions()[:, [raw.skeleton.index(n) for n in ANKLES]]
     offline = planted_ankle_height(raw) - stats["ankle_height"]  # what ground() moves the clip by
@@ -87,7 +88,7 @@ def test_the_shipped_statistics_come_from_the_datasets(datasets):
     import os
 
     os.environ.setdefault("MOTION_STYLE_DATASETS", str(datasets))
-    assert datasets_module().rotation_stats_file().read_text() == \
+    assert rotation_stats_file().read_text() == \
         datasets_module().rotation_stats_json(progress=False)
 
 
@@ -109,7 +110,7 @@ def test_rolls_undo_exactly_and_leave_positions_alone():
 
 def test_synthetic_performers_are_not_rolled():
     # The demo's performer, waving included: a raised arm says nothing about the rig (arms_hang).
-    stats = datasets.rotation_stats()
+    stats = rotation_stats()
     for kind in KINDS:
         assert np.abs(clip_rolls(synthetic_motion(kind, 30.0, 6.0), stats)).max() < 1e-9, kind
     wave = synthetic_motion("wave", 30.0, 6.0)
@@ -117,7 +118,7 @@ def test_synthetic_performers_are_not_rolled():
 
 
 def test_a_live_cmu_stream_finds_the_rolls_of_the_whole_clip(datasets):
-    stats = datasets_module().rotation_stats()
+    stats = rotation_stats()
     raw = resample(retarget(bvh.read(datasets / "cmu/data/07/07_03.bvh").to_motion()[1:], canonical()), 30.0)
     offline = clip_rolls(raw, stats)
     assert np.degrees(offline).min() < -30.0  # the CMU forearm frames are rolled 35-45 degrees

@@ -21,6 +21,7 @@ from motion_style_ros.core.skeleton import canonical, cmu31
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh, cache
 from motion_style_ros.io import datasets as ds
+from motion_style_ros.io.canonical import BONE_TOLERANCE
 
 D2 = "Bandai-Namco-Research-Motiondataset-2"
 SMALL = [f"dataset-2_raise-up-both-hands_active_{t}" for t in ("013", "014", "022", "025")]
@@ -152,7 +153,7 @@ def test_load_clip_keeps_the_trajectory_that_joint_root_carries(bandai):
     assert np.ptp(motion.root_positions[:, 2]) > 2.0  # ... and the loaded Hips follow it
     # The body moves exactly as in the file, up to the recording's sub-millimetre bone differences.
     body = np.s_[:, 1:]
-    assert np.abs(motion.global_positions()[body] - raw.global_positions()[body]).max() < ds.BONE_TOLERANCE
+    assert np.abs(motion.global_positions()[body] - raw.global_positions()[body]).max() < BONE_TOLERANCE
 
 
 def test_missing_datasets_name_the_unpack_script(tmp_path, monkeypatch):

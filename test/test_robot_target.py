@@ -27,7 +27,8 @@ def walk(datasets):
     from motion_style_ros.core.conform import ground
     from motion_style_ros.core.retarget import retarget
     from motion_style_ros.core.skeleton import canonical
-    from motion_style_ros.io.datasets import index_cmu, load_clip, rotation_stats
+    from motion_style_ros.io.datasets import index_cmu, load_clip
+    from motion_style_ros.io.resources import rotation_stats
 
     info = next(i for i in index_cmu(datasets) if i.name == "02_01")
     return ground(retarget(load_clip(info)[1:], canonical()), rotation_stats())

@@ -51,8 +51,9 @@ def run(args) -> int:
 
 def _rotation_stats(args) -> int:
     from motion_style_ros.io import datasets as ds
+    from motion_style_ros.io.resources import rotation_stats_file
 
-    expected, path = ds.rotation_stats_json(progress=False), ds.rotation_stats_file()
+    expected, path = ds.rotation_stats_json(progress=False), rotation_stats_file()
     if args.write:
         path.write_text(expected, encoding="utf-8")
         print(f"wrote {path}")

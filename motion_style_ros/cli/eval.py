@@ -83,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     from motion_style_ros.evaluation import harness
     from motion_style_ros.evaluation.judges import Judge
+    from motion_style_ros.runtime.backends import backend
     from motion_style_ros.runtime.offline import stylizer
 
     names = args.stylizer or []
@@ -91,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
 
         raise MotionStyleError("--reference-codes scores the windowed stylizer: give --stylizer stgcn")
     # Build the stylizers first: a missing model fails here in one line, before the slow part.
-    stylizers = {name: stylizer(name, args.model, args.alpha, args.threads, args.seed_spread)
+    stylizers = {name: stylizer(name, args.model, args.alpha, args.threads, args.seed_spread,
+                                **backend(name).settings(harness.PUBLISHED))
                  for name in names}
     if args.live:
         from motion_style_ros.cli import eval_live

@@ -69,8 +69,11 @@ def run(args: argparse.Namespace, backend: str) -> int:
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.evaluation import live
     from motion_style_ros.evaluation.judges import Judge
+    from motion_style_ros.io.canonical import canonical_clip
     from motion_style_ros.io.joint_state import JointStateLayout
-    from motion_style_ros.runtime.offline import canonical_clip, default_model, node_settings, stylizer
+    from motion_style_ros.runtime.backends import backend as spec
+    from motion_style_ros.runtime.defaults import DEFAULTS
+    from motion_style_ros.runtime.offline import default_model, stylizer
 
     styles = args.live_styles.split(",")
     out = Path(args.out)
@@ -81,7 +84,7 @@ def run(args: argparse.Namespace, backend: str) -> int:
     if not paths:
         raise MotionStyleError("no CMU or Xia clips found (unpack the datasets: "
                                "../shared/datasets/unpack.sh)")
-    settings = node_settings(backend)
+    settings = spec(backend).settings(DEFAULTS)  # the node's, written into the report
     offline = stylizer(backend, args.model, args.alpha, args.threads, **settings)
     layout = JointStateLayout.canonical()
     sk = canonical()
@@ -120,8 +123,6 @@ def run(args: argparse.Namespace, backend: str) -> int:
                            **settings},
               "clips": rows, "summary": _summary(rows)}
     if not args.no_proportions:
-        from motion_style_ros.runtime.backends import backend as spec
-
         Session = spec(backend).session_class()
         clips = [live.live_input(p) for p in paths]
         report["proportions"] = live.proportions(
@@ -144,9 +145,9 @@ def _delay(backend: str, fps: float) -> int:
 
     if not spec(backend).lookahead:
         return 0  # both go through step() with the same latency
-    from motion_style_ros.runtime.offline import default_model, node_settings
+    from motion_style_ros.runtime.offline import default_model
 
-    session = spec(backend).session_class()(default_model(backend), input_fps=fps, **node_settings(backend))
+    session = spec(backend).session_class()(default_model(backend), input_fps=fps)
     return int(round(session.latency * fps))
 
 

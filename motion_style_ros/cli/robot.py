@@ -232,7 +232,7 @@ def run_map(args: argparse.Namespace) -> int:
     import numpy as np
 
     from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.runtime.offline import canonical_clip
+    from motion_style_ros.io.canonical import canonical_clip
 
     out = Path(args.out)
     if out.suffix.lower() not in (".csv", ".npz"):

@@ -37,7 +37,7 @@ def run(args) -> int:
 
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime import style_bank
-    from motion_style_ros.runtime.offline import canonical_clip
+    from motion_style_ros.io.canonical import canonical_clip
     from motion_style_ros.runtime.onnx_model import model_path
     from motion_style_ros.runtime.windowed import WindowedSession
 

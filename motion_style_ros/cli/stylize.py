@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from motion_style_ros.runtime.backends import BACKENDS
+from motion_style_ros.runtime.defaults import DEFAULTS
 
 
 def add_parser(subparsers) -> None:
@@ -26,7 +27,7 @@ def add_parser(subparsers) -> None:
                         "the target style is the one the encoder recognises, unless --style names it)")
     p.add_argument("--seed", type=int, default=0,
                    help="stgcn backend: latent seed of the style codes (default: 0)")
-    p.add_argument("--seed-spread", type=float, default=1.0, metavar="S",
+    p.add_argument("--seed-spread", type=float, default=DEFAULTS["seed_spread"], metavar="S",
                    help="stgcn backend: how much seeds differ, 0 to 4 (default: 1, as trained)")
     p.add_argument("--alpha", type=float, default=1.0, help="style strength in [0, 1] (default: 1)")
     p.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
@@ -44,12 +45,13 @@ def run(args: argparse.Namespace) -> int:
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.io import bvh, render
     from motion_style_ros.runtime.backends import backend, with_feature
-    from motion_style_ros.runtime.offline import canonical_clip, stylizer
+    from motion_style_ros.io.canonical import canonical_clip
+    from motion_style_ros.runtime.offline import stylizer
 
     if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
         raise MotionStyleError(f"{args.render}: --render must end in .png or .gif")
     spec = backend(args.backend)
-    if not spec.latent_seeds and (args.reference or args.seed or args.seed_spread != 1.0):
+    if not spec.latent_seeds and (args.reference or args.seed or args.seed_spread != DEFAULTS["seed_spread"]):
         raise MotionStyleError(f"--reference, --seed and --seed-spread need --backend "
                                f"{' or '.join(with_feature('latent_seeds'))} (the {args.backend} backend "
                                "has no style codes)")

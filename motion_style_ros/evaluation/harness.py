@@ -34,6 +34,13 @@ from motion_style_ros.io.datasets import ClipInfo, index_bandai, load_bandai
 Stylizer = Callable[[Motion, str], Motion]
 Clip = tuple[ClipInfo, Motion]
 
+# The session settings the models' published figures (their cards' metrics, docs/models.md) were
+# measured with, from before the sessions took the node's defaults (runtime.defaults): no
+# trajectory following, the windowed backend 16 model frames ahead. The evaluations that reproduce
+# those figures pass them (each backend those it takes: Backend.settings); eval --live measures
+# the node as it runs, with the defaults.
+PUBLISHED = {"follow_seconds": None, "lookahead": 16}
+
 # Aggregated metrics, in report and table order.
 METRICS = {
     "style_accuracy": "style accuracy (judge 1)",

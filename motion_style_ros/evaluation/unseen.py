@@ -25,6 +25,7 @@ from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.evaluation import metrics
 from motion_style_ros.evaluation.judges import Judge
 from motion_style_ros.io import datasets
+from motion_style_ros.io.resources import rotation_stats
 
 Stylizer = Callable[[Motion, str], Motion]
 
@@ -38,7 +39,7 @@ def neutral_clips(root: Path | None = None) -> list[tuple[str, Motion]]:
     retargeted to the canonical skeleton, their planted ankles at the training data's height (the
     sessions conform their arm rolls)."""
     infos = datasets.index_cmu(root) + [i for i in datasets.index_xia(root) if i.style == "neutral"]
-    stats = datasets.rotation_stats()
+    stats = rotation_stats()
     clips = []
     for info in infos:
         motion = datasets.load_clip(info)

@@ -13,7 +13,7 @@ import numpy as np
 
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.evaluation.harness import Clip, SkipPair
+from motion_style_ros.evaluation.harness import PUBLISHED, Clip, SkipPair
 from motion_style_ros.evaluation.judges import Judge
 from motion_style_ros.evaluation.metrics import foot_skating
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
@@ -70,7 +70,7 @@ class ReferenceStylizer:
         self._by_style: dict[str, list[tuple[str, Motion]]] = {}
         for info, m in sorted(clips, key=lambda c: c[0].name):
             self._by_style.setdefault(info.style, []).append((info.content, m))
-        self._session = WindowedSession(model, threads=threads)
+        self._session = WindowedSession(model, threads=threads, **PUBLISHED)
         self._alpha, self._seed = alpha, seed
 
     def __call__(self, source: Motion, target_style: str) -> Motion:
@@ -110,7 +110,8 @@ def lookahead_costs(pairs: list[tuple[Motion, str]], model: str | Path = DEFAULT
     window = int(read_card(model_path(str(model)))["window"])
 
     def stylize(lookahead: int) -> list[Motion]:
-        session = WindowedSession(model, lookahead=lookahead, hop=min(hop, lookahead + 1))
+        session = WindowedSession(model, lookahead=lookahead, hop=min(hop, lookahead + 1),
+                                  follow_seconds=PUBLISHED["follow_seconds"])
         return [session.run(source, style) for source, style in pairs]
 
     most = stylize(window - 1)
@@ -140,7 +141,7 @@ def diversity(sources: list[Motion], styles: list[str], model: str | Path = DEFA
     seed spread ``spread``)."""
     outs = {}
     for seed in seeds:
-        session = WindowedSession(model, latent_seed=seed, seed_spread=spread)
+        session = WindowedSession(model, latent_seed=seed, seed_spread=spread, **PUBLISHED)
         for i, source in enumerate(sources):
             for style in styles:
                 outs[i, style, seed] = _local(session.run(source, style))
@@ -166,7 +167,7 @@ def seed_spread_costs(pairs: list[tuple[Motion, str]], sources: list[Motion], st
     for spread in spreads:
         outs, wanted = [], []
         for seed in (0, 1):
-            session = WindowedSession(model, latent_seed=seed, seed_spread=spread)
+            session = WindowedSession(model, latent_seed=seed, seed_spread=spread, **PUBLISHED)
             outs += [session.run(source, style) for source, style in pairs]
             wanted += [style for _, style in pairs]
         labels = judge.judge(outs).labels
@@ -182,7 +183,7 @@ def alpha_zero_error(sources: list[tuple[Motion, str]], model: str | Path = DEFA
     sources: mean pelvis-relative joint distance (m) and mean local rotation angle (degrees)."""
     from motion_style_ros.core import rotations as rot
 
-    session = WindowedSession(model)
+    session = WindowedSession(model, **PUBLISHED)
     outs = [session.run(source, style, alpha=0.0) for source, style in sources]
     distance = np.mean([np.linalg.norm(_local(o) - _local(s), axis=-1).mean() for o, (s, _) in zip(outs, sources)])
     angle = np.mean([np.degrees(rot.angle_between(o.rotations, s.rotations)).mean()
@@ -261,7 +262,7 @@ def enrolment(style: str, out_dir: Path, model: str | Path = DEFAULT_MODEL, clip
     out_dir.mkdir(parents=True, exist_ok=True)
     bank = out_dir / f"enrolled_{style}.json"
     style_bank.write(bank, {style: entry}, session.card["name"], session.model_digest)
-    enrolled = stylizer("stgcn", str(model), bank=bank)  # a session per input rate
+    enrolled = stylizer("stgcn", str(model), bank=bank, **PUBLISHED)  # a session per input rate
     test = held_out_clips(root, progress=progress)
     one_per_cell = {(i.content, i.style): m for i, m in sorted(test, key=lambda c: c[0].name)}
     sources = {"bandai2_test": list(one_per_cell.values()),

@@ -56,11 +56,11 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.skeleton import canonical, cmu31
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh, cache
+from motion_style_ros.io.canonical import canonical_arrays
 
 log = logging.getLogger(__name__)
 
@@ -71,12 +71,8 @@ DATASET1_SUFFIX = "-d1"  # dataset-1 styles named like a dataset-2 style (see th
 XIA_CONTENTS = {"01": "walk", "13": "run", "16": "jump", "18": "punch"}
 SPLITS = ("train", "val", "test", "unseen")
 SPLIT_FILE = "resources/bandai_split.csv"  # inside the motion_style_ros package
-ROTATION_STATS_FILE = "resources/rotation_stats.json"  # 6D local-rotation statistics, train split
 
 CACHE_VERSION = 2  # bump when the cached arrays change meaning (2: style labels, style_label)
-# Largest distance (m) of a bone's per-frame translation from the canonical rest offset; the
-# recordings deviate by at most 0.4 mm, another skeleton by centimetres.
-BONE_TOLERANCE = 2e-3
 
 _BANDAI_NAME = re.compile(r"dataset-(\d+)_([^_]+)_([^_]+)_(\d+)")
 _CMU_NAME = re.compile(r"(\d+)_(\d+)")
@@ -280,39 +276,6 @@ def _bandai_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return canonical_arrays(clip, path)
 
 
-def is_canonical(clip: bvh.BvhClip) -> bool:
-    """A BVH on the canonical skeleton (a Bandai Namco file, or this package's output)."""
-    sk = canonical()
-    return clip.skeleton.names == sk.names and clip.skeleton.parents == sk.parents
-
-
-def canonical_arrays(clip: bvh.BvhClip, path: Path | str) -> tuple[np.ndarray, np.ndarray]:
-    """Local rotations ``(T, 22, 4)`` and the Hips translation ``(T, 3)`` (m) of a canonical-skeleton
-    BVH in centimetres, at any rate.
-
-    ``joint_Root`` is static in almost every Bandai file, but four dataset-1 clips (short in-place
-    cycles) carry their trajectory on it; it is folded into Hips so that the canonical skeleton's
-    static root loses nothing.
-    """
-    sk = canonical()
-    if not is_canonical(clip):
-        raise MotionStyleError(f"{path}: not the 22-joint Bandai Namco skeleton")
-    m = clip.to_motion(scale=0.01)
-    error = np.abs(m.positions[:, 2:] - sk.offsets[2:]).max(axis=(0, 2))
-    j = int(np.argmax(error))
-    if error[j] > BONE_TOLERANCE:
-        raise MotionStyleError(
-            f"{path}: joint {sk.names[j + 2]} is {100 * error[j]:.1f} cm from the canonical "
-            "skeleton's rest offset; the clip does not fit the canonical skeleton"
-        )
-    root_q = m.rotations[:, 0]
-    rotations = m.rotations.copy()
-    rotations[:, 0] = rot.identity()
-    rotations[:, 1] = rot.multiply(root_q, m.rotations[:, 1])
-    hips = m.positions[:, 0] + rot.rotate(root_q, m.positions[:, 1])
-    return rotations, hips
-
-
 def load_clip(info: ClipInfo) -> Motion:
     """One clip, parsed now (float64).
 
@@ -445,20 +408,9 @@ def load_bandai(infos: list[ClipInfo] | None = None, progress: bool = True) -> l
 # --- rotation statistics (what core.conform aligns retargeted joint frames to) -----------------
 
 
-def rotation_stats_file() -> Path:
-    return Path(str(resources.files("motion_style_ros") / ROTATION_STATS_FILE))
-
-
-def rotation_stats() -> dict[str, np.ndarray]:
-    """Per-joint 6D local-rotation mean and std, the planted-ankle height and the stride scale of
-    the Bandai dataset-2 training takes (shipped; :func:`motion_style_ros.core.conform.statistics`)."""
-    data = json.loads(rotation_stats_file().read_text(encoding="utf-8"))
-    return {"names": np.array(data["names"]), "mean": np.array(data["mean"]), "std": np.array(data["std"]),
-            "ankle_height": float(data["ankle_height"]), "scale_reference": float(data["scale_reference"])}
-
-
 def rotation_stats_json(progress: bool = True) -> str:
-    """The rotation statistics computed from the datasets, as the shipped file holds them."""
+    """The rotation statistics computed from the datasets, as the shipped file
+    (:func:`motion_style_ros.io.resources.rotation_stats_file`) holds them."""
     from motion_style_ros.core.conform import statistics
 
     train = [m for info, m in load_bandai(progress=progress)

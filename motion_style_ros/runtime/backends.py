@@ -1,6 +1,8 @@
 """The stylizer backends: one entry each, asked by every caller (node, CLI, evaluation, bench)
-instead of comparing backend names. Adding a backend is one entry here, its session (model step)
-module, its trainer and its card."""
+instead of comparing backend names. Adding a backend is one entry here, its model-step module (a
+:class:`~motion_style_ros.runtime.stream.ModelStep` and the :class:`~motion_style_ros.runtime.stream.StreamSession`
+subclass that builds it, with the backend's own controls), its contract in
+:mod:`~motion_style_ros.runtime.contract`, its trainer and its card."""
 
 from __future__ import annotations
 
@@ -20,6 +22,12 @@ class Backend:
     reference_clips: bool = False  # a reference clip's style code can replace a style's
     style_bank: bool = False  # styles enrolled from clips (motion-style style add)
     lookahead: bool = False  # windows: outputs wait for lookahead model frames
+
+    def settings(self, values: dict) -> dict:
+        """The entries of ``values`` (session settings by keyword) that this backend's session
+        takes: ``hop`` and ``lookahead`` only with windows, ``seed_spread`` only with seeds."""
+        takes = {"hop": self.lookahead, "lookahead": self.lookahead, "seed_spread": self.latent_seeds}
+        return {k: v for k, v in values.items() if takes.get(k, True)}
 
     def session_class(self) -> type:
         module, name = self.session.split(":")

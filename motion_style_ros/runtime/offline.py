@@ -1,5 +1,6 @@
 """Whole clips through a streaming session, as a node would stream them: the one offline path
-shared by ``motion-style stylize`` and ``motion-style eval``.
+shared by ``motion-style stylize`` and ``motion-style eval``, with the sessions' defaults
+(:data:`motion_style_ros.runtime.defaults.DEFAULTS`, the node's) unless a caller passes others.
 
 A stylizer here is ``(source Motion on the canonical skeleton, target style) -> Motion``. Backends
 register a factory in :data:`STYLIZERS` as they land.
@@ -9,6 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from typing import TYPE_CHECKING
+
+from motion_style_ros.runtime.defaults import DEFAULTS
 
 if TYPE_CHECKING:  # the CLI imports this module to build its parser: keep it light
     from motion_style_ros.core.motion import Motion
@@ -28,23 +31,6 @@ def _per_rate(make: Callable[[float | None], object], alpha: float) -> Stylizer:
     return stylize
 
 
-def canonical_clip(path: str) -> "Motion":
-    """A humanoid BVH clip as the stylizers take it: on the canonical skeleton (retargeted when it
-    is another rig's, its planted ankles at the training data's height; the sessions conform its
-    arm rolls); a missing or bad file is a one-line :class:`MotionStyleError`."""
-    from motion_style_ros.core.conform import ground
-    from motion_style_ros.core.motion import Motion
-    from motion_style_ros.core.retarget import retarget
-    from motion_style_ros.core.skeleton import canonical
-    from motion_style_ros.io import bvh
-    from motion_style_ros.io.datasets import canonical_arrays, is_canonical, rotation_stats
-
-    clip = bvh.read(path)
-    if is_canonical(clip):  # Bandai Namco files and this package's own output, in centimetres
-        return Motion.from_rotations(canonical(), *canonical_arrays(clip, path), clip.fps).check_finite(path)
-    return ground(retarget(clip.to_motion().check_finite(path), canonical()), rotation_stats())
-
-
 def default_model(backend: str) -> str:
     """The shipped model file of a backend."""
     from motion_style_ros.runtime.backends import backend as spec
@@ -61,14 +47,14 @@ def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1, **
 
 
 def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1,
-          seed_spread: float = 1.0, **session) -> Stylizer:
+          seed_spread: float = DEFAULTS["seed_spread"], **session) -> Stylizer:
     """The windowed ST-GCN session: latent seed 0, the default window, hop and lookahead."""
     return windowed(model, alpha, threads, seed_spread=seed_spread, **session)[0]
 
 
 def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, seed: int = 0,
              reference: "Motion | None" = None, style: str | None = None,
-             seed_spread: float = 1.0, **session) -> tuple[Stylizer, str | None]:
+             seed_spread: float = DEFAULTS["seed_spread"], **session) -> tuple[Stylizer, str | None]:
     """The windowed ST-GCN session with a latent seed, or with a reference clip's style code (read
     by ``style``'s head, by default the style the encoder recognises); the stylizer, and the
     reference's style."""
@@ -88,23 +74,13 @@ def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, see
 
 
 STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent, "stgcn": stgcn}
-# What the stylizer node runs with beyond the sessions' own defaults (its parameters take their
-# defaults from here): the stylized root follows the performer's, and the windowed backend looks 8
-# model frames ahead.
-NODE_SETTINGS = {"follow_seconds": 2.0, "lookahead": 8}
-
-
-def node_settings(backend: str) -> dict:
-    """The :data:`NODE_SETTINGS` a backend's session takes."""
-    from motion_style_ros.runtime.backends import backend as spec
-
-    return {k: v for k, v in NODE_SETTINGS.items() if k != "lookahead" or spec(backend).lookahead}
 
 
 def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1,
              seed_spread: float | None = None, **session) -> Stylizer:
     """A backend's offline stylizer; ``seed_spread`` (stgcn only): see ``WindowedSession``;
-    ``session``: more session settings (e.g. :func:`node_settings`)."""
+    ``session``: more session settings (:meth:`~motion_style_ros.runtime.backends.Backend.settings`
+    keeps those a backend takes)."""
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime.backends import backend as spec
     from motion_style_ros.runtime.backends import with_feature

@@ -86,7 +86,7 @@ from motion_style_ros.io.urdf import RobotModel, read
 ACTUATED = ("revolute", "continuous", "prismatic")
 # Streaming contact: a foot is planted while its ankle is within PLANTED_HEIGHT of the planted-ankle
 # height and slow. That height starts at ANKLE_HEIGHT (where the package grounds motion: the training
-# data's planted ankles, datasets.rotation_stats()["ankle_height"]) and follows the lower ankle at
+# data's planted ankles, io.resources.rotation_stats()["ankle_height"]) and follows the lower ankle at
 # up to FLOOR_DOWN m/s downwards and FLOOR_UP m/s upwards.
 ANKLE_HEIGHT = 0.117
 FLOOR_DOWN = 0.5

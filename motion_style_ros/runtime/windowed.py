@@ -1,9 +1,9 @@
 """The windowed ST-GCN stylizer as a stream: frames in, frames out, ``lookahead`` frames later.
 
-:class:`WindowedSession` has the interface and stream handling of
-:class:`~motion_style_ros.runtime.session.RecurrentSession` (rates and resampling, gaps, the root
-trajectory, controls blended over ``blend_seconds``, bad frames rejected); only the model step
-differs:
+:class:`WindowedSession` is a :class:`~motion_style_ros.runtime.stream.StreamSession` (rates and
+resampling, gaps, the root trajectory, controls blended over ``blend_seconds``, bad frames
+rejected, foot locking, conditioning) around a :class:`WindowedStep`, the generator of the contract
+:data:`~motion_style_ros.runtime.contract.WINDOWED` with its mapping network and style encoder:
 
 - **Windows.** The generator sees the last ``window`` model frames (a new performer's history is
   filled with its first frame) and runs every ``hop`` frames for all performers together, and
@@ -28,9 +28,8 @@ differs:
   code, above 1 the seeds differ more, at some cost in how surely the style is recognised.
 - **Style bank.** Styles enrolled from a user's clips (:mod:`motion_style_ros.runtime.style_bank`)
   come after the model's own in ``styles``, each with its one fixed code: seeds do not move it.
-- **Foot locking.** With ``foot_lock`` (the default), feet the input plants stay planted in the
-  output (:mod:`motion_style_ros.core.foot_lock`), judged on the input frame each output frame
-  was made from.
+- **Foot locking.** Feet are locked on the input frame each output frame was made from
+  (``lookahead`` frames back).
 """
 
 from __future__ import annotations
@@ -39,7 +38,6 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_style_ros.core.conform import conform_rolls
 from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.core.features import encode
 from motion_style_ros.core.motion import Motion
@@ -48,11 +46,14 @@ from motion_style_ros.core.resample import resample
 from motion_style_ros.core.standing import ROOT_MOTION
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime import style_bank
+from motion_style_ros.runtime.backends import BACKENDS
+from motion_style_ros.runtime.contract import WINDOWED, check_card
 from motion_style_ros.runtime.controls import unit_interval
+from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
-from motion_style_ros.runtime.session import RecurrentSession, _check_card
+from motion_style_ros.runtime.stream import ModelFrame, StreamSession, Stylized
 
-DEFAULT_MODEL = "stgcn.onnx"
+DEFAULT_MODEL = BACKENDS["stgcn"].default_model
 MEAN_SEEDS = range(1_000_000, 1_000_064)  # the seeds whose codes average to a style's mean code
 MAX_SPREAD = 4.0
 
@@ -88,40 +89,17 @@ def _softmax(x: np.ndarray) -> np.ndarray:
     return e / e.sum(axis=-1, keepdims=True)
 
 
-class WindowedSession(RecurrentSession):
-    """The windowed stylizer over a stream of ``performers`` performers (see the module docstring).
+class WindowedStep:
+    """The windowed generator at ``path`` (card ``card``, its companions beside it) as a model
+    step: windows over the history, overlap-add, every performer's style codes (seeds, references,
+    the style bank ``bank``); its output frame is ``lookahead`` model frames behind its input."""
 
-    ``model``: the generator's file name or path (card and companions beside it); ``window``:
-    frames per window (default: the card's; a multiple of 4); ``hop``: frames between windows;
-    ``lookahead``: output delay in model frames (0 to ``window - 1``); ``latent_seed``: every
-    performer's seed; ``pipelined``: as for the recurrent session. Until :meth:`set_style`, every
-    performer gets the card's ``neutral_style`` at alpha 1. ``bank``: a style bank file (default:
-    the model's own, beside it, if there is one).
-    """
+    aligned = True
 
-    def __init__(
-        self,
-        model: str | Path = DEFAULT_MODEL,
-        performers: int = 1,
-        input_fps: float | None = None,
-        blend_seconds: float = 0.3,
-        threads: int = 1,
-        gap_seconds: float = 0.5,
-        follow_seconds: float | None = None,
-        window: int | None = None,
-        hop: int = 4,
-        lookahead: int = 16,
-        latent_seed: int = 0,
-        foot_lock: bool = True,
-        ground: bool = True,
-        seed_spread: float = 1.0,
-        pipelined: bool = False,
-        conform: bool = True,
-        bank: str | Path | None = None,
-    ) -> None:
-        path = model_path(str(model))
-        card = read_card(path)
-        _check_card(card, path, "windowed", ("window", "latent_dim", "style_dim", "files"))
+    def __init__(self, path: Path, card: dict, threads: int, window: int | None, hop: int,
+                 lookahead: int, latent_seed: int, seed_spread: float, bank: str | Path | None) -> None:
+        check_card(card, path, "windowed")
+        self.card = card
         self.window = int(card["window"]) if window is None else window
         if not (isinstance(self.window, (int, np.integer)) and self.window >= 4 and self.window % 4 == 0):
             raise MotionStyleError(f"window must be a multiple of 4 frames, at least 4; got {window!r}")
@@ -130,7 +108,9 @@ class WindowedSession(RecurrentSession):
         if not isinstance(lookahead, (int, np.integer)):
             raise MotionStyleError(f"lookahead must be a whole number of frames, got {lookahead!r}")
         self.hop, self.lookahead = int(hop), int(lookahead)
+        self.delay_frames = self.lookahead
         self.model = OnnxModel(path, threads)
+        WINDOWED.check(self.model.input_names, path, "windowed generator")
         companions = {k: model_path(str(path.with_name(name))) for k, name in card["files"].items()}
         self.mapping = OnnxModel(companions["mapping"], threads)
         self.style_encoder = OnnxModel(companions["style_encoder"], threads)
@@ -140,20 +120,157 @@ class WindowedSession(RecurrentSession):
         self.bank_path = Path(bank) if bank is not None else beside if beside.exists() else None
         self.bank = ({} if self.bank_path is None else
                      style_bank.read(self.bank_path, self.model_digest, int(card["style_dim"]), known))
-        self._known = len(known)
+        self.styles = [*known, *self.bank]
+        self.known = len(known)
         self._bank_codes = np.array([e.code for e in self.bank.values()]).reshape(len(self.bank), int(card["style_dim"]))
-        self._setup_stream(card, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                           foot_lock, ground, pipelined, delay_frames=self.lookahead, conform=conform,
-                           extra_styles=tuple(self.bank))
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
-        self.seed_spread = _spread(seed_spread)
+        self._fps = float(card["fps"])
+        self._seed, self._spread = latent_seed, seed_spread  # checked in start()
+
+    def start(self, performers: int, blend_seconds: float) -> None:
+        self.performers, self.blend_seconds = performers, blend_seconds
+        self.seed_spread = _spread(self._spread)
         self._mean_codes = self._mapped(*MEAN_SEEDS).mean(axis=0)
         # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
-        self._codes_to = np.repeat(self._seed_codes(latent_seed)[None], self.performers, axis=0)
+        self._codes_to = np.repeat(self.seed_codes(self._seed)[None], performers, axis=0)
         self._codes_from = self._codes_to.copy()
-        self._code_progress = np.ones(self.performers)
-        self.restart()
+        self._code_progress = np.ones(performers)
+
+    def restart(self) -> None:
+        self._n = 0  # model frames since the stream started
+        self._last_window = -self.hop
+        self._history = np.zeros((self.performers, self.window, self._n_in), dtype=np.float32)
+        self._ola = OverlapAdd(self.window, self.lookahead, self.performers, self._n_out)
+        self._start = np.zeros(self.performers, dtype=int)  # each performer's first frame
+        # the input's ankles of the frames in the overlap-add slots (for foot locking)
+        self._ankles = np.zeros((self.performers, self.lookahead + 1, 2, 3))
+        self._lifts = np.zeros((self.performers, self.lookahead + 1, 3))  # and their ground lifts
+
+    def __call__(self, frame: ModelFrame, style: np.ndarray, alpha: np.ndarray) -> Stylized:
+        """Adds the frame to the windows; returns frame ``n - lookahead``, blended from the windows
+        that cover it (a window runs every ``hop`` frames, or when no window covers that frame)."""
+        n, lookahead, fresh = self._n, self.lookahead, frame.fresh
+        self._history[:, :-1] = self._history[:, 1:]
+        self._history[:, -1] = frame.features
+        self._ola.shift()
+        self._ankles = np.roll(self._ankles, -1, axis=1)
+        self._ankles[:, -1] = frame.ankles
+        self._lifts = np.roll(self._lifts, -1, axis=1)
+        self._lifts[:, -1] = frame.lift
+        if fresh.any():
+            self._codes_from[fresh] = self._codes_to[fresh]
+            self._code_progress[fresh] = 1.0
+            self._history[fresh] = frame.features[fresh][:, None]
+            self._ola.clear(fresh)
+            self._ankles[fresh] = self._ankles[fresh, -1:]
+            self._lifts[fresh] = self._lifts[fresh, -1:]
+            self._start[fresh] = n
+        step = np.inf if self.blend_seconds == 0 else (1.0 / self._fps) / self.blend_seconds
+        self._code_progress = np.minimum(self._code_progress + step, 1.0)
+        due = np.maximum(n - lookahead, self._start)  # the frame each performer emits now
+        slot = due - (n - lookahead)
+        if n - self._last_window >= self.hop or not self._ola.covered(slot).all():
+            self._ola.add(self.model.run(features=self._history, code=self._code(style, alpha))["output"])
+            self._last_window = n
+        blocks = self._ola.frame(slot)
+        # A performer's first frame is shown until its lookahead has come in, refined as windows
+        # arrive, and stays where it started: its root does not move.
+        blocks[np.ix_(due == self._start, ROOT_MOTION)] = 0.0
+        self._n += 1
+        every = np.arange(self.performers)
+        return Stylized(blocks, self._history[every, due - n - 1], self._ankles[every, slot],
+                        self._lifts[every, slot])
+
+    # --- codes --------------------------------------------------------------------------------
+
+    def seed_codes(self, seed: int) -> np.ndarray:
+        """``(S, D)``: every style's code for one seed, at the seed spread (the bank's codes as
+        they are)."""
+        seeded = self._mean_codes + self.seed_spread * (self._mapped(seed)[0] - self._mean_codes)
+        return np.concatenate([seeded, self._bank_codes])
+
+    def current_codes(self) -> np.ndarray:
+        """``(P, S, D)``: every performer's codes as they are now (mid-blend included)."""
+        w = smoothstep(self._code_progress)[:, None, None]
+        return self._codes_from + w * (self._codes_to - self._codes_from)
+
+    def blend_to(self, which: slice | int, codes: np.ndarray, style: int | None = None) -> None:
+        """Blend the performers ``which`` from their current codes to ``codes`` (every style's
+        ``(S, D)``, or with ``style`` that style's ``(D,)``) over ``blend_seconds``."""
+        self._codes_from[which] = self.current_codes()[which]
+        self._code_progress[which] = 0.0 if self.blend_seconds else 1.0
+        if style is None:
+            self._codes_to[which] = codes
+        else:
+            self._codes_to[which, style] = codes
+
+    def _mapped(self, *seeds: int) -> np.ndarray:
+        """``(K, S, D)``: every style's code for each seed from the mapping network, as trained
+        (one run for all of them)."""
+        n, size = self.known, int(self.card["latent_dim"])
+        z = np.repeat(np.stack([latent(seed, size) for seed in seeds]), n, axis=0).astype(np.float32)
+        style = np.tile(np.eye(n, dtype=np.float32), (len(seeds), 1))
+        return self.mapping.run(z=z, style=style)["code"].astype(np.float64).reshape(len(seeds), n, -1)
+
+    def _code(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        """``(P, D)`` float32 codes for the window in ``_history``: the style weights over each
+        performer's codes, moved from the window's own code by alpha."""
+        target = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes())
+        if (alpha >= 1.0).all():
+            return target.astype(np.float32)
+        out = self.style_encoder.run(features=self._history)
+        own = np.einsum("ps,psd->pd", _softmax(out["logits"]), out["codes"])
+        return (own + alpha * (target - own)).astype(np.float32)
+
+
+class WindowedSession(StreamSession):
+    """The windowed stylizer over a stream of ``performers`` performers (see the module docstring
+    and :class:`~motion_style_ros.runtime.stream.StreamSession`).
+
+    ``model``: the generator's file name or path (card and companions beside it); ``window``:
+    frames per window (default: the card's; a multiple of 4); ``hop``: frames between windows;
+    ``lookahead``: output delay in model frames (0 to ``window - 1``); ``latent_seed``: every
+    performer's seed; ``seed_spread``: see the module docstring. Until :meth:`set_style`, every
+    performer gets the card's ``neutral_style`` at alpha 1. ``bank``: a style bank file (default:
+    the model's own, beside it, if there is one).
+    """
+
+    def __init__(
+        self,
+        model: str | Path = DEFAULT_MODEL,
+        performers: int = 1,
+        input_fps: float | None = None,
+        blend_seconds: float = DEFAULTS["blend_seconds"],
+        threads: int = 1,
+        gap_seconds: float = DEFAULTS["gap_seconds"],
+        follow_seconds: float | None = DEFAULTS["follow_seconds"],
+        window: int | None = None,
+        hop: int = DEFAULTS["hop"],
+        lookahead: int = DEFAULTS["lookahead"],
+        latent_seed: int = 0,
+        foot_lock: bool = DEFAULTS["foot_lock"],
+        ground: bool = DEFAULTS["ground"],
+        seed_spread: float = DEFAULTS["seed_spread"],
+        pipelined: bool = DEFAULTS["pipelined"],
+        conform: bool = DEFAULTS["conform"],
+        bank: str | Path | None = None,
+    ) -> None:
+        path = model_path(str(model))
+        card = read_card(path)
+        self.windows = WindowedStep(path, card, threads, window, hop, lookahead, latent_seed,
+                                    seed_spread, bank)
+        w = self.windows
+        self.window, self.hop, self.lookahead = w.window, w.hop, w.lookahead
+        self.model, self.mapping, self.style_encoder = w.model, w.mapping, w.style_encoder
+        self.model_digest, self.bank, self.bank_path = w.model_digest, w.bank, w.bank_path
+        super().__init__(card, w, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
+                         foot_lock, ground, pipelined, conform)
+
+    @property
+    def seed_spread(self) -> float:
+        """How far seeds' codes lie from their style's mean (1: as trained); :meth:`set_seed` sets it."""
+        return self.windows.seed_spread
 
     # --- controls ---------------------------------------------------------------------------
 
@@ -162,19 +279,19 @@ class WindowedSession(RecurrentSession):
         """Every style's code from the mapping network and this seed (mixed with ``mix_seed``'s
         codes by ``mix_weight`` in [0, 1]), at ``spread`` (default: the session's ``seed_spread``,
         which a value given here replaces); drops a reference. Blends over ``blend_seconds``."""
-        which = self._controls.which(performer)
+        which = self.controls.which(performer)
         if spread is not None:
-            self.seed_spread = _spread(spread)
-        codes = self._seed_codes(latent_seed)
+            self.windows.seed_spread = _spread(spread)
+        codes = self.windows.seed_codes(latent_seed)
         if mix_seed is not None:
             w = unit_interval(mix_weight, "seed mix weight")
-            codes = (1.0 - w) * codes + w * self._seed_codes(mix_seed)
-        self._begin_codes(which)
-        self._codes_to[which] = codes
+            codes = (1.0 - w) * codes + w * self.windows.seed_codes(mix_seed)
+        self.catch_up()  # the model frames a pipelined step left run with the codes they had
+        self.windows.blend_to(which, codes)
 
     def codes(self, performer: int = 0) -> np.ndarray:
         """``(S, D)``: the performer's code for each style as it is now (mid-blend included)."""
-        return self._current_codes()[self._controls.which(performer)]
+        return self.windows.current_codes()[self.controls.which(performer)]
 
     def set_reference(self, motion: Motion, style: str | None = None, performer: int | None = None
                       ) -> str:
@@ -187,15 +304,15 @@ class WindowedSession(RecurrentSession):
                       performer: int | None = None) -> str:
         """:meth:`set_reference` with the clip's :meth:`reference_codes` already made (a node makes
         them off the thread that streams)."""
-        k = int(np.argmax(logits)) if style is None else self._controls.style_index(style)
-        if k < self._known:
+        k = int(np.argmax(logits)) if style is None else self.controls.style_index(style)
+        if k < self.windows.known:
             head = k
         else:  # an enrolled style: its own head, or for a mixed entry the clip's closest style
             enrolled = self.bank[self.styles[k]].head
             head = int(np.argmax(logits)) if enrolled == style_bank.MIX else self.styles.index(enrolled)
-        which = self._controls.which(performer)
-        self._begin_codes(which)
-        self._codes_to[which, k] = codes[head]
+        which = self.controls.which(performer)
+        self.catch_up()
+        self.windows.blend_to(which, codes[head], k)
         self.set_style(self.styles[k], performer)
         return self.styles[k]
 
@@ -204,7 +321,7 @@ class WindowedSession(RecurrentSession):
         read = [self.reference_codes(m) for m in clips]
         frames = [round(m.n_frames * self.fps / m.fps) for m in clips]
         return style_bank.enrol([c for c, _ in read], [x for _, x in read], frames, names,
-                                self.styles[: self._known], head)
+                                self.styles[: self.windows.known], head)
 
     def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         """A clip's code under every style's head ``(S, D)`` and the style logits ``(S,)``, or a
@@ -221,8 +338,7 @@ class WindowedSession(RecurrentSession):
             raise MotionStyleError("reference clip has NaN or infinite values")
         if motion.fps != self.fps:
             motion = resample(motion, self.fps)
-        if self._rolls is not None:  # the encoder reads rotations: in the training data's frames
-            motion = conform_rolls(motion, self._rolls.stats)
+        motion = self.conformed(motion)  # the encoder reads rotations: in the training data's frames
         if motion.n_frames < self.window:
             raise MotionStyleError(
                 f"reference clip too short: {motion.n_frames} frames at {self.fps:g} fps; it needs at "
@@ -232,119 +348,3 @@ class WindowedSession(RecurrentSession):
         features = features[: len(features) // 4 * 4][None].astype(np.float32)
         out = self.style_encoder.run(features=features)
         return out["codes"][0], out["logits"][0]
-
-    # --- stream -------------------------------------------------------------------------------
-
-    def run(self, motion: Motion, style: str, alpha: float = 1.0, calibration: Motion | None = None
-            ) -> Motion:
-        """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``), with
-        the output aligned to the input: the stream is run on past the clip's end (its last frame
-        held) for the latency, and the first outputs, which belong before the clip, are dropped."""
-        delay = round(self.latency * self.input_fps)
-        held = Motion.from_rotations(
-            motion.skeleton, np.concatenate([motion.rotations, np.repeat(motion.rotations[-1:], delay, 0)]),
-            np.concatenate([motion.root_positions, np.repeat(motion.root_positions[-1:], delay, 0)]),
-            motion.fps) if delay else motion
-        out = super().run(held, style, alpha, calibration=motion if calibration is None else calibration)
-        return Motion.from_rotations(self.skeleton, out.rotations[delay:],
-                                     out.root_positions[delay:], motion.fps)
-
-    def restart(self) -> None:
-        super().restart()
-        self._n = 0  # model frames since the stream started
-        self._last_window = -self.hop
-        self._history = np.zeros((self.performers, self.window, self._n_in), dtype=np.float32)
-        self._ola = OverlapAdd(self.window, self.lookahead, self.performers, self._n_out)
-        self._start = np.zeros(self.performers, dtype=int)  # each performer's first frame
-        # the input's ankles of the frames in the overlap-add slots (for foot locking)
-        self._ankles = np.zeros((self.performers, self.lookahead + 1, 2, 3))
-        self._lifts = np.zeros((self.performers, self.lookahead + 1, 3))  # and their ground lifts
-
-    def _tick(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
-        """One model frame for all performers at stream time ``t``; emits frame ``t - lookahead``."""
-        n, lookahead = self._n, self.lookahead
-        fresh = self._fresh.copy()
-        features, lift = self._conditioned(q, p, fresh)
-        self._history[:, :-1] = self._history[:, 1:]
-        self._history[:, -1] = features
-        self._ola.shift()
-        self._ankles = np.roll(self._ankles, -1, axis=1)
-        self._ankles[:, -1] = self._encoder.positions[:, self._ankle_joints]
-        self._lifts = np.roll(self._lifts, -1, axis=1)
-        self._lifts[:, -1] = lift
-        if fresh.any():
-            self._decoder.start(*self._encoder.facing(), which=fresh)
-            self._controls.snap(fresh)
-            self._snap_codes(fresh)
-            self._history[fresh] = features[fresh][:, None]
-            self._ola.clear(fresh)
-            self._ankles[fresh] = self._ankles[fresh, -1:]
-            self._lifts[fresh] = self._lifts[fresh, -1:]
-            if self._foot_lock is not None:
-                self._foot_lock.reset(fresh)
-                self._standing.reset(fresh)
-            self._start[fresh] = n
-        style, alpha = self._controls.advance(1.0 / self.fps)
-        self._advance_codes(1.0 / self.fps)
-        due = np.maximum(n - lookahead, self._start)  # the frame each performer emits now
-        slot = due - (n - lookahead)
-        if n - self._last_window >= self.hop or not self._ola.covered(slot).all():
-            self._ola.add(self.model.run(features=self._history, code=self._code(style, alpha))["output"])
-            self._last_window = n
-        frames = self._ola.frame(slot)
-        # A performer's first frame is shown until its lookahead has come in, refined as windows
-        # arrive, and stays where it started: its root does not move.
-        frames[np.ix_(due == self._start, ROOT_MOTION)] = 0.0
-        if self._standing is not None:
-            frames = self._standing(frames, self._history[np.arange(self.performers), due - n - 1])
-        self._fresh[:] = False
-        self._remeasured[:] = False  # a window forgets unconformed frames by itself, within a window
-        self._n += 1
-        frame = self._placed(self._decoder(frames), self._ankles[np.arange(self.performers), slot])
-        shown_lift = self._lifts[np.arange(self.performers), slot]  # the lift of the frame emitted
-        self._emit(t - lookahead / self.fps, frame[0], frame[1] + shown_lift)
-
-    # --- codes --------------------------------------------------------------------------------
-
-    def _seed_codes(self, seed: int) -> np.ndarray:
-        """``(S, D)``: every style's code for one seed, at the session's seed spread (the bank's
-        codes as they are)."""
-        seeded = self._mean_codes + self.seed_spread * (self._mapped(seed)[0] - self._mean_codes)
-        return np.concatenate([seeded, self._bank_codes])
-
-    def _mapped(self, *seeds: int) -> np.ndarray:
-        """``(K, S, D)``: every style's code for each seed from the mapping network, as trained
-        (one run for all of them)."""
-        n, size = self._known, int(self.card["latent_dim"])
-        z = np.repeat(np.stack([latent(seed, size) for seed in seeds]), n, axis=0).astype(np.float32)
-        style = np.tile(np.eye(n, dtype=np.float32), (len(seeds), 1))
-        return self.mapping.run(z=z, style=style)["code"].astype(np.float64).reshape(len(seeds), n, -1)
-
-    def _current_codes(self) -> np.ndarray:
-        w = smoothstep(self._code_progress)[:, None, None]
-        return self._codes_from + w * (self._codes_to - self._codes_from)
-
-    def _begin_codes(self, which: slice | int) -> None:
-        self.catch_up()  # the model frames a pipelined step left run with the codes they had
-        self._codes_from[which] = self._current_codes()[which]
-        self._code_progress[which] = 0.0 if self._controls.blend_seconds else 1.0
-
-    def _snap_codes(self, which: np.ndarray) -> None:
-        self._codes_from[which] = self._codes_to[which]
-        self._code_progress[which] = 1.0
-
-    def _advance_codes(self, seconds: float) -> None:
-        blend = self._controls.blend_seconds
-        step = np.inf if blend == 0 else seconds / blend
-        self._code_progress = np.minimum(self._code_progress + step, 1.0)
-
-    def _code(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-        """``(P, D)`` float32 codes for the window in ``_history``: the style weights over each
-        performer's codes, moved from the window's own code by alpha."""
-        target = np.einsum("ps,psd->pd", style.astype(np.float64), self._current_codes())
-        if (alpha >= 1.0).all():
-            return target.astype(np.float32)
-        out = self.style_encoder.run(features=self._history)
-        own = np.einsum("ps,psd->pd", _softmax(out["logits"]), out["codes"])
-        return (own + alpha * (target - own)).astype(np.float32)
-

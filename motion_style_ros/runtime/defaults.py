@@ -1,0 +1,20 @@
+"""One source of the streaming sessions' defaults: the session classes' keyword defaults, the
+stylizer node's parameter declarations, ``motion-style stylize``, ``eval`` and ``bench`` all read
+:data:`DEFAULTS`, so a clip stylized offline and the same clip streamed through the node come out
+the same. The values are the node's: the stylized root follows the performer's (2 s), and the
+windowed backend looks 8 model frames (267 ms) ahead."""
+
+from __future__ import annotations
+
+DEFAULTS: dict[str, float | int | bool] = {
+    "blend_seconds": 0.3,  # s a style, alpha, mix, seed or reference change blends over
+    "gap_seconds": 0.5,  # s between two stamps beyond which the stream restarts
+    "follow_seconds": 2.0,  # s time constant pulling the stylized trajectory towards the input's
+    "foot_lock": True,  # feet the input plants stay planted
+    "ground": True,  # planted ankles moved to the training data's height on the way in, back out
+    "conform": True,  # arm rolls and size measured and conformed to the training data's
+    "pipelined": False,  # the output waits for no model frame of its own input frame
+    "hop": 4,  # windowed: model frames between two windows
+    "lookahead": 8,  # windowed: model frames of the future each output frame waits for
+    "seed_spread": 1.0,  # windowed: how far seeds' codes lie from their style's mean (1: as trained)
+}
