@@ -82,9 +82,10 @@ def add_parser(subparsers):
                             "performer against the longest gap between two inputs (the clip is read "
                             "off the streams' thread)")
     nodes.set_defaults(func=run_nodes)
-    from motion_style_ros.cli import soak
+    from motion_style_ros.cli import faults, soak
 
     soak.add_parser(targets)
+    faults.add_parser(targets)
     recurrent.add_argument("--model", default=DEFAULT_MODEL,
                            help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
     nodes.add_argument("--model", default=None,
@@ -171,7 +172,7 @@ def run_stgcn(args) -> int:
     from motion_style_ros.core.synthetic import synthetic_motion
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.evaluation.windowed import bench_report
-    from motion_style_ros.runtime.offline import canonical_clip
+    from motion_style_ros.io.canonical import canonical_clip
     from motion_style_ros.runtime.onnx_model import model_path, record_metrics
 
     try:
@@ -390,7 +391,8 @@ def run_nodes(args) -> int:
             if args.reference:
                 print(f"{'':>10} longest gap between two outputs of a performer {gaps['output_ms']:.1f} ms "
                       f"({gaps['output_ms'] * rate / 1000:.2f} input periods), between two inputs sent "
-                      f"{gaps['input_ms']:.1f} ms; reference changes {gaps['changes']}"
+                      f"{gaps['input_ms']:.1f} ms; added by the node {gaps['stall_ms']:.1f} ms "
+                      f"({gaps['stall_ms'] * rate / 1000:.2f} periods); reference changes {gaps['changes']}"
                       + (" (the clip read and encoded on the node's worker thread)" if gaps["changes"] else ""))
     print(f"load average {_load()} (after); node p99: the stylizer's own p99 (ms, worst performer) "
           "from a message's arrival in its DDS reader to the stylized frame's publication, from its "
@@ -528,7 +530,11 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
     output_gap = max((np.diff(sorted(got[s] for s in stamps if s in got)).max(initial=0)
                       for stamps, got in zip(sent, arrivals)), default=0)
     input_gap = max((np.diff(stamps).max(initial=0) for stamps in sent), default=0)
-    gaps = {"output_ms": output_gap / 1e6, "input_ms": input_gap / 1e6,
+    # What the node adds to a gap: how much later than the one before a frame came back, beyond how
+    # much later it was sent (a stall in the node delays every frame queued behind it by as much).
+    stall = max((np.diff([got[s] - s for s in stamps if s in got]).max(initial=0)
+                 for stamps, got in zip(sent, arrivals)), default=0)
+    gaps = {"output_ms": output_gap / 1e6, "input_ms": input_gap / 1e6, "stall_ms": stall / 1e6,
             "changes": sum(f.done() and all(r.successful for r in f.result().results) for f in changes)}
     return (np.array(latency) / 1e6, sum(map(len, sent)), max(node_p99.values(), default=np.nan),
             cpu, own, gaps)
