@@ -1,6 +1,7 @@
 """``motion-style bench``: how fast the stylizers run here, per frame and in performers."""
 
 from motion_style_ros.runtime.backends import BACKENDS
+from motion_style_ros.runtime.defaults import DEFAULTS
 
 DEFAULT_MODEL = BACKENDS["recurrent"].default_model
 MAX_PERFORMERS = 4096  # where the search for the real-time limit stops
@@ -43,8 +44,8 @@ def add_parser(subparsers):
                        help="humanoid BVH to stream (default: a 10 s synthetic walk at 30 Hz)")
     stgcn.add_argument("--hops", default="1,4,8", metavar="N,N,...",
                        help="hops (model frames between windows) to time (default: 1,4,8)")
-    stgcn.add_argument("--lookahead", type=int, default=8,
-                       help="model frames each output waits for (default: 8)")
+    stgcn.add_argument("--lookahead", type=int, default=DEFAULTS["lookahead"],
+                       help=f"model frames each output waits for (default: {DEFAULTS['lookahead']})")
     stgcn.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     stgcn.add_argument("--record", action="store_true",
                        help="also write the figures into the model card's metrics")
@@ -71,8 +72,8 @@ def add_parser(subparsers):
                        help="measured stream time per row in seconds (default: 10)")
     nodes.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
                        help="the node's backend (default: recurrent)")
-    nodes.add_argument("--lookahead", type=int, default=8,
-                       help="stgcn: model frames each output waits for (default: 8)")
+    nodes.add_argument("--lookahead", type=int, default=DEFAULTS["lookahead"],
+                       help=f"stgcn: model frames each output waits for (default: {DEFAULTS['lookahead']})")
     nodes.add_argument("--pipelined", action="store_true",
                        help="the node's pipelined mode: each frame is published before the model "
                             "frames it does not need run (one input frame more latency)")
