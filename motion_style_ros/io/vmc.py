@@ -36,7 +36,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from pythonosc import osc_bundle, osc_message, osc_message_builder, osc_packet
+from pythonosc import osc_bundle, osc_message, osc_message_builder
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion
@@ -63,6 +63,12 @@ BLEND_ADDRESS = "/VMC/Ext/Blend/Val"
 APPLY_ADDRESS = "/VMC/Ext/Blend/Apply"
 RECEIVE_BUFFER = 4 * 1024 * 1024  # bytes of socket buffer asked for (the kernel may cap it: rmem_max)
 STALE_NS = 100_000_000  # an output whose frame is further than this from every kept one: counted
+# No performer sends a position (m), quaternion component, scale, offset or blendshape value beyond
+# this: such a value is a corrupt one (float32 still holds it: 1e30 passes every finiteness check).
+MAX_VALUE = 1e4
+MAX_TIME = 1e11  # s: /VMC/Ext/T beyond is no clock's (an epoch time is 1.7e9; 1e300 overflows a stamp)
+MAX_NESTING = 8  # bundles within bundles (VMC senders nest none)
+_BUNDLE_PREFIX = b"#bundle\x00"
 
 # Unity's humanoid body bones, parents first; optional bones hang off their nearest present ancestor.
 UNITY_PARENTS: dict[str, str | None] = {
@@ -132,9 +138,15 @@ def _is_number(x: object) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
+def _is_value(x: object, bound: float = MAX_VALUE) -> bool:
+    """A finite number within ``bound``."""
+    return _is_number(x) and -bound <= x <= bound
+
+
 def _check_transform(args: Sequence[object], extra: tuple[int, ...]) -> None:
-    """Raises :class:`VmcMessageError` unless ``args`` are a name, 7 finite numbers with a non-zero
-    quaternion, and ``extra`` more (plain Python: this runs for every bone of every frame)."""
+    """Raises :class:`VmcMessageError` unless ``args`` are a name, 7 numbers within ``MAX_VALUE``
+    with a non-zero quaternion, and ``extra`` more (plain Python: this runs for every bone of every
+    frame)."""
     if len(args) - 8 not in extra:
         raise VmcMessageError(f"expected {[8 + e for e in extra]} arguments, got {len(args)}")
     name = args[0]
@@ -143,8 +155,8 @@ def _check_transform(args: Sequence[object], extra: tuple[int, ...]) -> None:
     numbers = args[1:]
     if not all(_is_number(x) for x in numbers):
         raise VmcMessageError(f"{name}: non-numeric values {list(numbers)!r}")
-    if not all(math.isfinite(x) for x in numbers):
-        raise VmcMessageError(f"{name}: non-finite values")
+    if not all(-MAX_VALUE <= x <= MAX_VALUE for x in numbers):  # NaN fails both
+        raise VmcMessageError(f"{name}: values not finite or beyond {MAX_VALUE:g}")
     if math.hypot(*numbers[3:7]) < 1e-6:
         raise VmcMessageError(f"{name}: zero quaternion")
 
@@ -225,8 +237,9 @@ class VmcFrameAssembler:
 
     Each frame holds the last known value of every bone seen so far, so a frame that misses bones is
     completed from the previous pose; it is emitted once every required bone has been seen (before
-    that it is counted as ``incomplete``). A malformed message is dropped on its own (``malformed``,
-    as are unparsable packets); the rest of its bundle still makes a frame. Messages outside VMC
+    that it is counted as ``incomplete``). A malformed message (values not finite or beyond
+    ``MAX_VALUE`` included) is dropped on its own (``malformed``, as are unparsable packets); the
+    rest of its bundle still makes a frame. Messages outside VMC
     and bone names outside HumanBodyBones are ``ignored``.
     """
 
@@ -255,9 +268,10 @@ class VmcFrameAssembler:
         self._pending = False
 
     def feed(self, address: str, args: Sequence[object],
-             message: osc_message.OscMessage | None = None) -> list[VmcFrame]:
+             message: osc_message.OscMessage | None = None, *, whole: bool = False) -> list[VmcFrame]:
         """Take one message (``message``: the parsed OSC message, kept to send on as it came);
-        returns the frames it completed (none, one, or the previous one and a one-message one)."""
+        returns the frames it completed (none, one, or the previous one and a one-message one).
+        ``whole``: the message is in a bundle of a whole frame, which its bundle's end ends."""
         try:
             key = self._key(address, args)
         except VmcMessageError:
@@ -288,7 +302,7 @@ class VmcFrameAssembler:
         self._keys.add(key)
         self._bundle_keys.add(key)
         self._previous_key = key
-        if key == self.last_key:
+        if key == self.last_key and not whole:
             frames.append(self.end_frame())
         return [f for f in frames if f is not None]
 
@@ -302,8 +316,9 @@ class VmcFrameAssembler:
             _root_extension(args)
             return ("root",)
         if address == TIME_ADDRESS:
-            if len(args) != 1 or not _is_number(args[0]) or not math.isfinite(args[0]):
-                raise VmcMessageError(f"{TIME_ADDRESS} takes one number, got {list(args)!r}")
+            if len(args) != 1 or not _is_value(args[0], MAX_TIME):
+                raise VmcMessageError(f"{TIME_ADDRESS} takes one number within {MAX_TIME:g} s, "
+                                      f"got {list(args)!r}")
             return ("time",)
         if address == OK_ADDRESS:
             if not 1 <= len(args) <= 4 or not all(isinstance(a, int) and not isinstance(a, bool)
@@ -313,9 +328,9 @@ class VmcFrameAssembler:
         if address == APPLY_ADDRESS:
             return ("apply",)
         if address == BLEND_ADDRESS:
-            if len(args) != 2 or not isinstance(args[0], str) or not _is_number(args[1]) \
-                    or not math.isfinite(args[1]):
-                raise VmcMessageError(f"{BLEND_ADDRESS} takes a name and a number, got {list(args)!r}")
+            if len(args) != 2 or not isinstance(args[0], str) or not _is_value(args[1]):
+                raise VmcMessageError(f"{BLEND_ADDRESS} takes a name and a number within "
+                                      f"{MAX_VALUE:g}, got {list(args)!r}")
         return None
 
     def _take(self, key: tuple[str, ...], address: str, args: Sequence[object],
@@ -368,26 +383,52 @@ class VmcFrameAssembler:
     def feed_datagram(self, data: bytes) -> list[VmcFrame]:
         """Take one UDP datagram (an OSC message or bundle); returns the frames it completed."""
         try:
-            packet = osc_packet.OscPacket(data)
-        except (osc_packet.ParseError, ValueError, IndexError, TypeError, struct.error,
-                UnicodeDecodeError):
+            messages = osc_messages(data)
+        except (osc_message.ParseError, ValueError, IndexError, TypeError, struct.error):
             self.counts["malformed"] += 1
             return []
+        names = {m.params[0] for m in messages
+                 if m.address == BONE_ADDRESS and m.params and isinstance(m.params[0], str)}
+        # A bundle with every required bone is a frame of its own (one bundle per frame) once it
+        # also holds the sender's last key (if learnt): it ends there and only there, and its last
+        # key is the sender's, so a flood of one bone learnt as the last key cannot split it.
+        whole = data.startswith(_BUNDLE_PREFIX) and all(b in names for b in self.required)
         frames = []
-        names = set()
         self._bundle_keys = set()
-        for m in packet.messages:
-            frames += self.feed(m.message.address, m.message.params, m.message)
-            if m.message.address == BONE_ADDRESS and m.message.params:
-                names.add(m.message.params[0])
-        if data.startswith(b"#bundle") and self._pending and all(b in names for b in self.required) \
-                and (self.last_key is None or self.last_key in self._bundle_keys):
-            # A bundle with every required bone (and the sender's last key, once learnt) is a frame
-            # of its own (one bundle per frame).
-            if self.last_key is None:
-                self.last_key = self._previous_key
+        for m in messages:
+            frames += self.feed(m.address, m.params, m, whole=whole)
+        if whole and self._pending and (self.last_key is None or self.last_key in self._bundle_keys):
+            self.last_key = self._previous_key
             frames.append(self.end_frame())
         return [f for f in frames if f is not None]
+
+
+def osc_messages(data: bytes, depth: int = 0) -> list[osc_message.OscMessage]:
+    """The OSC messages of a datagram in the order sent, nested bundles flattened.
+
+    Stricter than python-osc's ``OscPacket``, which loops for ever on a negative bundle element
+    size, takes a size past the end as the rest of the datagram, skips an element it cannot
+    identify and recurses without bound (a ``RecursionError``): each of these raises
+    :class:`VmcMessageError` here. Messages keep the order sent: time tags are not waited for
+    (``OscPacket`` sorts by them), a pose is shown when it comes.
+    """
+    if not data.startswith(_BUNDLE_PREFIX):
+        if not data.startswith(b"/"):
+            raise VmcMessageError("neither an OSC message nor a bundle")
+        return [osc_message.OscMessage(data)]
+    if depth == MAX_NESTING:
+        raise VmcMessageError(f"bundles nested deeper than {MAX_NESTING}")
+    messages, i = [], len(_BUNDLE_PREFIX) + 8  # after the time tag
+    if len(data) < i:
+        raise VmcMessageError("bundle without a time tag")
+    while i < len(data):
+        (size,) = struct.unpack_from(">i", data, i)  # struct.error past the end
+        i += 4
+        if size <= 0 or size % 4 or i + size > len(data):
+            raise VmcMessageError(f"bundle element of {size} bytes at byte {i} of {len(data)}")
+        messages += osc_messages(data[i:i + size], depth + 1)
+        i += size
+    return messages
 
 
 def _unity_tree(present: Sequence[str]) -> tuple[list[str], list[int]]:
@@ -532,7 +573,7 @@ _IMMEDIATELY = struct.pack(">Q", 1)  # the OSC time tag "now"
 def _bundle(messages: Sequence[osc_message.OscMessage | Packet]) -> Packet:
     """One bundle of ``messages`` (their datagrams as they are: python-osc's builder would parse
     every message it has just written again, which doubled the cost of a frame)."""
-    return Packet(b"#bundle\x00" + _IMMEDIATELY + b"".join(
+    return Packet(_BUNDLE_PREFIX + _IMMEDIATELY + b"".join(
         struct.pack(">i", len(m.dgram)) + m.dgram for m in messages))
 
 
@@ -880,8 +921,11 @@ class VmcLink:
              delay_ns: int, time: float) -> Packet:
         """The VMC bundle for one stylized JointState stamped ``stamp_ns`` whose pose shows the
         input of ``stamp_ns - delay_ns``. Raises MotionStyleError for names or values the layout
-        cannot decode."""
+        cannot decode, and for values beyond ``MAX_VALUE`` (no pose has them; past float32's range
+        they could not even be sent)."""
         rotations, root = self.layout.decode(names, positions)
+        if np.abs(np.asarray(positions, dtype=np.float64)).max() > MAX_VALUE:
+            raise MotionStyleError(f"JointState values beyond {MAX_VALUE:g} (m or rad): not a pose")
         shown = self._shown(stamp_ns - delay_ns)
         if shown is None:
             self._fallback = self._fallback or VmcEncoder()
