@@ -60,13 +60,16 @@ setup(
         'rosbags',
         'tqdm',
         'matplotlib',
+        # robot body maps (runtime/robot_target.py); rosbags brings it too, but it is imported here
+        'ruamel.yaml',
         # URDF files (robot targets, the canonical skeleton's description): parsing and FK
         'yourdfpy',
     ],
     extras_require={
         # torch==2.13.0 exactly: a looser spec can pull a multi-GB CUDA build.
         'train': ['torch==2.13.0', 'onnx'],
-        'test': ['pytest'],
+        # onnx builds the tests' stand-in models (test/onnx_fixtures.py); the runtime never imports it
+        'test': ['pytest', 'onnx'],
     },
     # Package data (csv/json) and models are opened by path, so never install as a zipped egg.
     zip_safe=False,

@@ -71,11 +71,10 @@ def datasets():
 
 @pytest.fixture(scope="module")
 def small_model(tmp_path_factory):
-    """A random-weight Style-ERD model with the real ONNX interface and three styles (active,
-    elderly, normal), for tests of node behaviour that must not depend on the shipped model."""
-    pytest.importorskip("torch")  # writing the stand-in model needs it; the nodes do not
-    from motion_style_ros.training.recurrent import export_random_model
+    """A random-weight stand-in for Style-ERD with the real ONNX interface and three styles (active,
+    elderly, normal; ``onnx_fixtures.py``), for tests of node behaviour that must not depend on the
+    shipped model."""
+    from onnx_fixtures import recurrent_model
 
-    path = tmp_path_factory.mktemp("small_model") / "style_erd.onnx"
-    export_random_model(path, ["active", "elderly", "normal"], seed=0)
-    return path
+    return recurrent_model(tmp_path_factory.mktemp("small_model") / "style_erd.onnx",
+                           ["active", "elderly", "normal"])

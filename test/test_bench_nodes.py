@@ -7,14 +7,13 @@ to assert); a random-weight model stands in for the shipped one.
 import subprocess
 import sys
 
+from onnx_fixtures import recurrent_model
+
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 
 
 def test_bench_nodes_measures_every_row(tmp_path, ros_env):
-    from motion_style_ros.training.recurrent import export_random_model
-
-    model = tmp_path / "style_erd.onnx"
-    export_random_model(model, STYLES, seed=0)
+    model = recurrent_model(tmp_path / "style_erd.onnx", STYLES)
     result = subprocess.run(
         [sys.executable, "-m", "motion_style_ros.cli.main", "bench", "nodes", "--model", str(model),
          "--rates", "60", "--performers", "2", "--seconds", "1"],

@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import numpy as np
+from onnx_fixtures import recurrent_model
 from PIL import Image
 
 from motion_style_ros.io.bags import read_joint_states
@@ -17,10 +18,7 @@ STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "
 
 
 def test_demo_streams_records_and_renders(tmp_path, ros_env):
-    from motion_style_ros.training.recurrent import export_random_model
-
-    model = tmp_path / "style_erd.onnx"
-    export_random_model(model, STYLES, seed=0)
+    model = recurrent_model(tmp_path / "style_erd.onnx", STYLES)
     out = tmp_path / "demo"
     result = subprocess.run(
         [sys.executable, "-m", "motion_style_ros.cli.main", "demo", "--model", str(model),

@@ -8,6 +8,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
+from onnx_fixtures import recurrent_model
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion
@@ -143,10 +144,9 @@ def test_cli_writes_the_report_and_prints_the_baselines(datasets, tmp_path):
 def test_the_recurrent_stylizer_is_scored_through_its_streaming_session(clips, judges, tmp_path):
     """A random-weight model, so this checks the wiring, not the quality (the model card has that)."""
     from motion_style_ros.runtime.offline import stylizer
-    from motion_style_ros.training.recurrent import export_random_model
 
     styles = sorted({info.style for info, _ in clips})
-    export_random_model(tmp_path / "erd.onnx", styles, seed=0)
+    recurrent_model(tmp_path / "erd.onnx", styles)
     stylize = stylizer("recurrent", str(tmp_path / "erd.onnx"))
     walks = [c for c in clips if c[0].content == "walk"][:2]
     pairs = [harness.Pair(info, s) for info, _ in walks for s in ("elderly", "youthful")

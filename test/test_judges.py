@@ -74,7 +74,7 @@ def test_shipped_judges_are_small_and_carry_their_cards(all_judges, datasets):
 def _torch_judge(judge):
     """The torch network with the shipped ONNX weights (its initializers carry the state_dict names;
     a CNN's do, the exporter re-packs a GRU's)."""
-    torch = pytest.importorskip("torch")
+    torch = pytest.importorskip("torch", reason="compares the judges with torch: pip install '.[train]'")
     onnx = pytest.importorskip("onnx")
     from motion_style_ros.models.judge import ARCHITECTURES
     from motion_style_ros.training.judges import input_columns
@@ -99,7 +99,7 @@ def test_every_judge_was_exported_with_torch_parity(all_judges):
 
 @pytest.mark.parametrize("kind,panel", [(k, p) for k, p in JUDGES if (k, p) != ("style", 2)])  # a GRU: above
 def test_onnx_matches_torch_on_real_clips_of_any_length(kind, panel, all_judges, test_features):
-    torch = pytest.importorskip("torch")
+    torch = pytest.importorskip("torch", reason="compares the judges with torch: pip install '.[train]'")
     net = _torch_judge(all_judges[kind, panel])
     judges = {kind: all_judges[kind, panel]}
     clips = [test_features[0][:1], test_features[1][:7], test_features[2], test_features[3][:200]]
@@ -119,7 +119,7 @@ def test_onnx_matches_torch_on_real_clips_of_any_length(kind, panel, all_judges,
 
 @pytest.mark.parametrize("architecture", ["cnn", "gru"])
 def test_export_of_a_fresh_network_matches_torch(architecture, tmp_path):
-    torch = pytest.importorskip("torch")
+    torch = pytest.importorskip("torch", reason="compares the judges with torch: pip install '.[train]'")
     from motion_style_ros.models.judge import ARCHITECTURES
     from motion_style_ros.runtime.onnx_model import OnnxModel
     from motion_style_ros.training.judges import export_onnx

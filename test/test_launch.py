@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from onnx_fixtures import recurrent_model
 
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH = ROOT / "launch" / "stylizer.launch.py"
@@ -104,10 +105,7 @@ def test_launch_file_runs_with_the_real_launch_service(tmp_path):
     from sensor_msgs.msg import JointState
     from visualization_msgs.msg import MarkerArray
 
-    from motion_style_ros.training.recurrent import export_random_model
-
-    model = tmp_path / "style_erd.onnx"
-    export_random_model(model, STYLES, seed=0)
+    model = recurrent_model(tmp_path / "style_erd.onnx", STYLES)
     params = yaml.safe_load((share / "config" / "stylizer.yaml").read_text())
     params["/**/stylizer"]["ros__parameters"]["blend_seconds"] = 0.7  # set by the file only
     (tmp_path / "stylizer.yaml").write_text(yaml.safe_dump(params))

@@ -5,6 +5,7 @@ import sys
 
 import numpy as np
 import pytest
+from onnx_fixtures import recurrent_model, windowed_model
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.synthetic import synthetic_motion
@@ -16,11 +17,7 @@ STYLES = ["active", "elderly", "normal"]
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
-    from motion_style_ros.training.recurrent import export_random_model
-
-    path = tmp_path_factory.mktemp("erd") / "erd.onnx"
-    export_random_model(path, STYLES, seed=0)
-    return path
+    return recurrent_model(tmp_path_factory.mktemp("erd") / "erd.onnx", STYLES)
 
 
 def stylize_cli(*args):
@@ -55,12 +52,8 @@ def test_stylize_errors_are_one_line(model, tmp_path):
 
 def test_stylize_with_a_reference_clip_on_the_stgcn_backend(datasets, tmp_path):
     """A Bandai take (canonical skeleton, centimetres) in; the style code from another take."""
-    pytest.importorskip("torch")  # for the stand-in model only
-    from motion_style_ros.training.stgcn import export_random_model
-
-    model = tmp_path / "stgcn.onnx"
-    export_random_model(model, ["active", "elderly", "exhausted", "feminine", "masculine", "normal",
-                                "youthful"], seed=0)
+    model = windowed_model(tmp_path / "stgcn.onnx", ["active", "elderly", "exhausted", "feminine",
+                                                     "masculine", "normal", "youthful"])
     data = datasets / "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data"
     source, reference = data / "dataset-2_walk_normal_001.bvh", data / "dataset-2_walk_elderly_001.bvh"
     outputs = {}

@@ -4,6 +4,7 @@ runtime's: state carried across calls, batching, rates, controls, gaps, bad inpu
 
 import numpy as np
 import pytest
+from onnx_fixtures import recurrent_model
 
 from motion_style_ros.core import features as F
 from motion_style_ros.core import rotations as rot
@@ -21,11 +22,7 @@ CLIPS = ("dataset-2_walk_normal_010", "dataset-2_walk-turn-right_masculine_003",
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
-    from motion_style_ros.training.recurrent import export_random_model
-
-    path = tmp_path_factory.mktemp("erd") / "style_erd.onnx"
-    export_random_model(path, STYLES, seed=0)
-    return path
+    return recurrent_model(tmp_path_factory.mktemp("erd") / "style_erd.onnx", STYLES)
 
 
 @pytest.fixture(scope="module")

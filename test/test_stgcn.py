@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-torch = pytest.importorskip("torch")
+torch = pytest.importorskip("torch", reason="tests the torch networks: pip install '.[train]'")
 ort = pytest.importorskip("onnxruntime")
 
 from motion_style_ros.core import graph

@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from onnx_fixtures import windowed_model
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import ClipInfo, load_clip
@@ -21,19 +22,7 @@ TAKES = ["dataset-2_walk_youthful_001", "dataset-2_run_youthful_001", "dataset-2
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
-    torch = pytest.importorskip("torch")
-    from motion_style_ros.models.stgcn import Generator, MappingNetwork, StyleEncoder, tiny
-    from motion_style_ros.training.stgcn import write_model
-
-    cfg = tiny(tuple(STYLES))
-    torch.manual_seed(0)
-    mean, std = np.zeros(cfg.n_features), np.ones(cfg.n_features)
-    gen = Generator(cfg, mean, std)
-    with torch.no_grad():
-        gen.last.weight.normal_(0.0, 0.05)
-    path = tmp_path_factory.mktemp("bank") / "stgcn.onnx"
-    write_model(gen, MappingNetwork(cfg), StyleEncoder(cfg, mean, std), path, {"data": "none"})
-    return path
+    return windowed_model(tmp_path_factory.mktemp("bank") / "stgcn.onnx", STYLES)
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-torch = pytest.importorskip("torch")
+torch = pytest.importorskip("torch", reason="tests the torch model: pip install '.[train]'")
 ort = pytest.importorskip("onnxruntime")
 
 from motion_style_ros.models.style_erd import StepGraph, StyleERD, tiny

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import ros_helpers
 from diagnostic_msgs.msg import DiagnosticArray
+from onnx_fixtures import recurrent_model
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -28,6 +29,7 @@ from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.io import bags
 from motion_style_ros.io.joint_state import JointStateLayout, to_ros
 from motion_style_ros.nodes.bvh_player import load
+from motion_style_ros.nodes.stylizer import stamp_seconds
 from motion_style_ros.runtime.session import RecurrentSession
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
@@ -44,18 +46,14 @@ RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPol
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
-    from motion_style_ros.training.recurrent import export_random_model
-
-    path = tmp_path_factory.mktemp("model") / "style_erd.onnx"
-    export_random_model(path, STYLES, seed=0)
-    return path
+    return recurrent_model(tmp_path_factory.mktemp("model") / "style_erd.onnx", STYLES)
 
 
 @pytest.fixture(scope="module")
 def bag(datasets, tmp_path_factory):
     """A CMU walk retargeted to the canonical skeleton, in the canonical layout, as an MCAP bag."""
     values, fps = load(str(datasets / CMU_CLIP), LAYOUT)
-    values = np.ascontiguousarray(values)
+    values = np.ascontiguousarray(values[1:])  # frame 0 of a CMU take is a T-pose, not the walk
     assert fps == FPS
     path = tmp_path_factory.mktemp("bag") / "walk"
     bags.write_joint_states(path, [bags.JointStateRecord(T0 + k * PERIOD, LAYOUT.names, values[k])
@@ -523,8 +521,8 @@ def test_the_stylized_stream_mapped_onto_a_real_humanoid(ros_env, model, recorde
     assert list(robot[0].name) == target.names and stamps(robot).tolist() == stamps(states).tolist()
     q = np.array([m.position for m in robot])
     assert np.all(q >= target.lower - 1e-9) and np.all(q <= target.upper + 1e-9)
-    expected = [target.step(*LAYOUT.decode(LAYOUT.names, m.position), t * 1e-9)
-                for m, t in zip(states, stamps(states))]
+    expected = [target.step(*LAYOUT.decode(LAYOUT.names, m.position), stamp_seconds(m.header.stamp))
+                for m in states]  # stamps converted as the node converts them
     assert np.abs(q - np.array(expected)).max() < 1e-6  # the node maps what it stylized
     for chunk in chunks:
         check_trajectory_chunk(chunk, target.names)

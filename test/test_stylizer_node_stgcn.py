@@ -8,6 +8,7 @@ outputs are checked against an offline :class:`WindowedSession` fed the same fra
 import numpy as np
 import pytest
 import ros_helpers
+from onnx_fixtures import windowed_model
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -18,7 +19,7 @@ from sensor_msgs.msg import JointState
 from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.io import bvh
 from motion_style_ros.io.joint_state import JointStateLayout
-from motion_style_ros.runtime.offline import canonical_clip
+from motion_style_ros.io.canonical import canonical_clip
 from motion_style_ros.runtime.windowed import WindowedSession
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
@@ -33,12 +34,7 @@ REFERENCE = "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data/dataset-2_w
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
-    pytest.importorskip("torch")  # writing the stand-in model needs it; the node does not
-    from motion_style_ros.training.stgcn import export_random_model
-
-    path = tmp_path_factory.mktemp("stgcn") / "stgcn.onnx"
-    export_random_model(path, STYLES, seed=0)
-    return path
+    return windowed_model(tmp_path_factory.mktemp("stgcn") / "stgcn.onnx", STYLES)
 
 
 @pytest.fixture(scope="module")

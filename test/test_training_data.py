@@ -4,7 +4,7 @@ speed copies; a style that cannot be left out is a one-line error."""
 import numpy as np
 import pytest
 
-pytest.importorskip("torch")
+pytest.importorskip("torch", reason="the trainers' data needs torch: pip install '.[train]'")
 
 from motion_style_ros.core.features import encode
 from motion_style_ros.core.mirror import mirror

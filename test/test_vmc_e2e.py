@@ -24,7 +24,7 @@ from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.io import vmc
 from vmc_helpers import BLENDSHAPES, sender_frames, unity_humanoid
 
-vmcp = pytest.importorskip("vmcp", reason="vmcp (requirements-dev.txt) is the VMC peer of these tests")
+vmcp = pytest.importorskip("vmcp", reason="vmcp (requirements-test.txt) is the VMC peer of these tests")
 from vmcp.events import (  # noqa: E402
     BlendShapeEvent,
     BoneTransformEvent,

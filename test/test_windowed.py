@@ -4,6 +4,7 @@ interface); and, where the trained model ships, what it does with reference styl
 
 import numpy as np
 import pytest
+from onnx_fixtures import windowed_model
 
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd, taper
@@ -26,37 +27,15 @@ def walk(datasets):
     return bandai(datasets, "dataset-2_walk-turn-right_masculine_003")
 
 
-def _export(path, last_weight: float | None):
-    """Tiny networks with identity normalisation; ``last_weight=None`` keeps the generator at its
-    start (the identity), else its last layer is drawn with that scale."""
-    torch = pytest.importorskip("torch")
-    from motion_style_ros.models.stgcn import (
-        Generator,
-        MappingNetwork,
-        StyleEncoder,
-        tiny,
-    )
-    from motion_style_ros.training.stgcn import write_model
-
-    cfg = tiny(tuple(STYLES))
-    torch.manual_seed(0)
-    mean, std = np.zeros(cfg.n_features), np.ones(cfg.n_features)
-    gen = Generator(cfg, mean, std)
-    if last_weight is not None:
-        with torch.no_grad():
-            gen.last.weight.normal_(0.0, last_weight)
-    write_model(gen, MappingNetwork(cfg), StyleEncoder(cfg, mean, std), path, {"data": "none"})
-    return path
-
-
 @pytest.fixture(scope="module")
 def identity_model(tmp_path_factory):
-    return _export(tmp_path_factory.mktemp("identity") / "stgcn.onnx", None)
+    """A generator that returns its input (random mapping network and style encoder)."""
+    return windowed_model(tmp_path_factory.mktemp("identity") / "stgcn.onnx", STYLES, residual=0.0)
 
 
 @pytest.fixture(scope="module")
 def random_model(tmp_path_factory):
-    return _export(tmp_path_factory.mktemp("random") / "stgcn.onnx", 0.05)
+    return windowed_model(tmp_path_factory.mktemp("random") / "stgcn.onnx", STYLES)
 
 
 def test_overlap_add_of_identity_windows_reproduces_the_input_exactly():
