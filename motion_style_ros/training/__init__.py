@@ -1,1 +1,11 @@
-"""Training loops, ONNX export and model cards (torch)."""
+"""Training loops, ONNX export and model cards (torch), by concept:
+
+- :mod:`.data`: Bandai takes as feature clips, their augmentation, windows and normalisation;
+- :mod:`.losses`: differentiable kinematics and the reconstruction losses of the stylizers;
+- :mod:`.loop`: the resumable training loop (checkpoints, budget, log) every stylizer trainer runs;
+- :mod:`.export`: ONNX export under the model contract's names, shared card fields, model writing;
+- one package per stylizer with only its own parts, a ``trainer`` (config, networks, step,
+  validation, ``train``) and an ``export`` (graphs, parity, card, a random stand-in for tests):
+  :mod:`.recurrent` (Style-ERD) and :mod:`.stgcn`;
+- :mod:`.judges`: the evaluation judges' training, export and cards.
+"""

@@ -1,6 +1,6 @@
 """Training data for every trainer: Bandai takes as encoded feature clips with style and content
-indices, their augmentation (speeds, mirroring), windows drawn from them, and the feature
-normalisation. Which takes and augmentations a run uses is its config's ``datasets``, ``speeds``,
+indices, their augmentation (speeds, mirroring), windows drawn from them (of any style, or one of
+each style asked for) with the targets of a transfer, and the feature normalisation. Which takes and augmentations a run uses is its config's ``datasets``, ``speeds``,
 ``balance``, ``mirror`` and ``exclude`` fields (:func:`load_for`)."""
 
 from __future__ import annotations
@@ -16,9 +16,27 @@ from motion_style_ros.core.features import encode
 from motion_style_ros.core.mirror import mirror as mirror_motion
 from motion_style_ros.core.resample import at_speed
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.io.datasets import index_bandai, load_bandai
+from motion_style_ros.io.datasets import BANDAI_FPS, index_bandai, load_bandai
 
 NEUTRAL = "normal"
+FPS = BANDAI_FPS  # the rate of every training take, so of every model trained on them
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    """The fields every stylizer's config starts with: the run's seed and the takes it trains on
+    (:func:`load_for`; :func:`recipe` describes them on the card)."""
+
+    seed: int = 0
+    datasets: tuple[int, ...] = (2,)
+    # Every train take can also be used played slower and faster (other performers walk at other
+    # paces); windows are drawn with weight frames / style_frames ** balance, so that dataset-1's
+    # styles (one take per content) come up more often than their share of frames. The shipped
+    # models use neither; the 22-style Style-ERD run of the models-v2 issue used (0.8, 1.25) and 0.5.
+    speeds: tuple[float, ...] = ()
+    balance: float = 0.0
+    mirror: bool = False  # also every train take mirrored left-right (load_data)
+    exclude: tuple[str, ...] = ()  # styles left out (to enrol them later through a style bank)
 
 
 @dataclass
@@ -107,13 +125,34 @@ def windows(clips: Clips, length: int, count: int, rng: np.random.Generator
             torch.from_numpy(clips.contents[idx]))
 
 
-def load_for(cfg, progress: bool = True) -> Data:
+def style_windows(clips: Clips, length: int, styles: np.ndarray, rng: np.random.Generator
+                  ) -> torch.Tensor:
+    """One random ``length``-frame window of a take of each requested style: ``(len(styles),
+    length, F)``."""
+    spans = np.array([max(len(f) - length + 1, 0) for f in clips.features], dtype=float)
+    out = []
+    for style in styles:
+        p = spans * (clips.styles == style)
+        if p.sum() == 0:
+            raise MotionStyleError(f"no take of style {style} has the {length} frames a window needs")
+        i = rng.choice(len(p), p=p / p.sum())
+        s = rng.integers(0, int(spans[i]))
+        out.append(clips.features[i][s : s + length])
+    return torch.from_numpy(np.stack(out))
+
+
+def other_styles(style: torch.Tensor, n_styles: int, rng: np.random.Generator) -> torch.Tensor:
+    """A random style index other than each row's own (the targets of a transfer)."""
+    return (style + torch.from_numpy(rng.integers(1, n_styles, len(style)))) % n_styles
+
+
+def load_for(cfg: DataConfig, progress: bool = True) -> Data:
     """:func:`load_data` with a trainer config's data fields."""
     return load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance, mirror=cfg.mirror,
                      exclude=cfg.exclude)
 
 
-def recipe(cfg) -> dict:
+def recipe(cfg: DataConfig) -> dict:
     """The card's account of a config's data fields."""
     aug = [f"every train take also at speeds {list(cfg.speeds)}"] if cfg.speeds else []
     if cfg.mirror:
@@ -130,7 +169,8 @@ def recipe(cfg) -> dict:
     }
 
 
-def normalisation(clips: Clips, floor: float) -> tuple[np.ndarray, np.ndarray]:
-    """Train-frame mean and std per feature (std floored: near-constant features stay small)."""
-    frames = np.concatenate(clips.features)
+def normalisation(features: list[np.ndarray], floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and std per feature over the frames of the train clips ``features`` (std floored:
+    near-constant features stay small)."""
+    frames = np.concatenate(features)
     return frames.mean(axis=0), np.maximum(frames.std(axis=0), floor)

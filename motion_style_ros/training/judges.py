@@ -10,9 +10,7 @@ last epoch, and only ever reports.
 
 from __future__ import annotations
 
-import json
 import time
-import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -22,18 +20,16 @@ import torch.nn.functional as F
 from torch import nn
 from tqdm import tqdm
 
-from motion_style_ros.core.features import FEATURE_VERSION, encode, feature_layout
+from motion_style_ros.core.features import encode, feature_layout
 from motion_style_ros.evaluation.judges import judge_file
 from motion_style_ros.io.datasets import ClipInfo, index_bandai, load_bandai
 from motion_style_ros.models.judge import ARCHITECTURES, Judge
+from motion_style_ros.runtime.contract import JUDGE
+from motion_style_ros.training.data import FPS, normalisation
+from motion_style_ros.training.export import LICENCE, data_fields, export_graph, run_onnx, write_card
+from motion_style_ros.training.loop import CHECKPOINTS
 
-FPS = 30.0
-CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
 WINDOW, HOP = 60, 30  # window-level accuracy: 2 s windows every second
-ATTRIBUTION = (
-    'Kobayashi et al., "Motion Capture Dataset for Practical Use of AI-based Motion Editing and '
-    'Stylization", arXiv:2306.08861, 2023'
-)
 
 
 @dataclass(frozen=True)
@@ -152,49 +148,23 @@ def input_columns(inputs: tuple[str, ...] | list[str]) -> np.ndarray:
     return np.concatenate([np.arange(slices[b].start, slices[b].stop) for b in inputs])
 
 
-def _normalisation(split: Split, floor: float) -> tuple[np.ndarray, np.ndarray]:
-    """Train-frame mean and std per feature; the floor keeps near-constant features from
-    being blown up into noise."""
-    frames = np.concatenate(split.features)
-    return frames.mean(axis=0), np.maximum(frames.std(axis=0), floor)
-
-
 def export_onnx(model: Judge, path: Path) -> None:
     """ONNX graph on raw features with dynamic batch and time axes; outputs logits, embedding."""
-    model.eval()
-    with warnings.catch_warnings():
-        # The TorchScript exporter is deprecated in favour of the dynamo one, which needs
-        # onnxscript; this small CNN exports the same either way.
-        warnings.simplefilter("ignore", DeprecationWarning)
-        # Edge padding exports as Slice ops it cannot fold; harmless, and not the user's concern.
-        warnings.filterwarnings("ignore", message="Constant folding")
-        # The GRU has no initial-state input, so ONNX Runtime starts it at zeros for any batch size.
-        warnings.filterwarnings("ignore", message="Exporting a model to ONNX with a batch_size")
-        torch.onnx.export(
-            model,
-            (torch.zeros(1, 64, len(model.mean)),),
-            str(path),
-            input_names=["features"],
-            output_names=["logits", "embedding"],
-            dynamic_axes={
-                "features": {0: "batch", 1: "time"}, "logits": {0: "batch"}, "embedding": {0: "batch"}
-            },
-            opset_version=17,
-            dynamo=False,
-        )
+    # Edge padding exports as Slice ops it cannot fold; harmless, and not the user's concern. The
+    # GRU has no initial-state input, so ONNX Runtime starts it at zeros for any batch size.
+    export_graph(model, (torch.zeros(1, 64, len(model.mean)),), path, JUDGE, timed=("features",),
+                 time_axis="time", quiet=("Constant folding", "Exporting a model to ONNX with a batch_size"))
 
 
 @torch.no_grad()
 def parity(model: nn.Module, path: Path, clips: list[np.ndarray]) -> tuple[float, int]:
     """Largest logit difference between the ONNX graph and the torch network on ``clips`` (each
     whole, batch 1, as the evaluation runs them), and how many clips."""
-    from motion_style_ros.runtime.onnx_model import OnnxModel
-
-    session, worst = OnnxModel(path), 0.0
+    worst = 0.0
     model.eval()
     for f in clips:
         expected = model(torch.from_numpy(f[None]))[0].numpy()
-        worst = max(worst, float(np.abs(session.run(features=f[None])["logits"] - expected).max()))
+        worst = max(worst, float(np.abs(run_onnx(path, JUDGE, f[None])[0] - expected).max()))
     return worst, len(clips)
 
 
@@ -214,7 +184,7 @@ def train(
     started = time.perf_counter()
     labels, splits = make_splits(cfg.kind, clips if clips is not None else encode_clips(progress))
     train_split = splits["train"]
-    mean, std = _normalisation(train_split, cfg.std_floor)
+    mean, std = normalisation(train_split.features, cfg.std_floor)
     torch.manual_seed(cfg.seed)  # initial weights
     model = ARCHITECTURES[cfg.architecture](mean, std, len(labels), cfg.width, cfg.embedding,
                                             cfg.dropout, input_columns(cfg.inputs))
@@ -289,7 +259,7 @@ def train(
     card = _card(cfg, model, labels, splits, state, onnx_path)
     card["onnx_torch_max_abs_diff"], card["parity_probe_clips"] = parity(model, onnx_path, splits["test"].features[:4])
     card["training"]["wall_time_s"] = round(earlier + time.perf_counter() - started, 1)
-    onnx_path.with_suffix(".json").write_text(json.dumps(card, indent=2) + "\n")
+    write_card(onnx_path, card)
     return card
 
 
@@ -323,10 +293,7 @@ def _card(
             "embedding": f"(batch, {cfg.embedding}) time-averaged features before the classifier "
                          "(the space of FMD and content consistency)",
         },
-        "fps": FPS,
-        "skeleton": "canonical (22 joints, Bandai Namco / Unity humanoid names, metres)",
-        "feature_version": FEATURE_VERSION,
-        "feature_layout": {k: [s.start, s.stop] for k, s in layout.slices.items()},
+        **data_fields("canonical (22 joints, Bandai Namco / Unity humanoid names, metres)"),
         "min_frames": 1,
         "clip_length_note": "Convolutions pad by repeating edge frames, so any length works; "
                             f"trained on {crop_s[0]:g}-{crop_s[1]:g} s crops, clips under 1 s carry "
@@ -375,6 +342,5 @@ def _card(
             "labels": labels,
             "matrix": confusion.tolist(),
         },
-        "licence": "CC BY-NC 4.0 (inherited from the training data): non-commercial use only",
-        "attribution": ATTRIBUTION,
+        **LICENCE,
     }

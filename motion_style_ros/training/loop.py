@@ -1,0 +1,207 @@
+"""The resumable training loop every stylizer trainer runs: a time and iteration budget counted
+over all resumed runs, a loss log (``losses.jsonl``), validation, and checkpoints that a later run
+continues exactly (every iteration draws its data from a generator seeded by the seed and the
+iteration, so a resumed run repeats what an uninterrupted one would have done)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from abc import ABC, abstractmethod
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+from tqdm import tqdm
+
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.training.data import Data, DataConfig
+
+CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
+PROGRESS_INTERVAL = 0.1 if sys.stderr.isatty() else 30.0  # progress lines in a log file: one per 30 s
+
+
+def update_average(average: nn.Module, live: nn.Module, decay: float) -> None:
+    """Move the exponential moving average of ``live``'s weights one step (what is exported)."""
+    with torch.no_grad():
+        for p_avg, p in zip(average.parameters(), live.parameters()):
+            p_avg.lerp_(p, 1 - decay)
+
+
+class ResumableTrainer(ABC):
+    """The loop, checkpoints and log of a trainer in ``checkpoints/<FOLDER>_<seed>/``
+    (``checkpoint.pt``, ``losses.jsonl``). A model's trainer builds its networks and optimisers
+    after calling this ``__init__``, sets the class attributes below, has a ``model`` (the network
+    the loop puts in train mode) and defines :meth:`step` and :meth:`validate`."""
+
+    FOLDER: str  # the checkpoint folder's prefix
+    LABEL: str  # the progress bar's
+    SHOWN: tuple[str, ...]  # the logged losses the progress bar shows
+    PARTS: tuple[str, ...]  # the attributes (modules, optimisers) a checkpoint holds besides the state
+
+    def __init__(self, cfg: DataConfig, data: Data, checkpoints: Path, progress: bool) -> None:
+        self.cfg, self.data, self.progress = cfg, data, progress
+        self.dir = self.folder(checkpoints, cfg.seed)
+        self.state = {"iteration": 0, "train_seconds": 0.0, "val": []}
+
+    @abstractmethod
+    def step(self, iteration: int) -> dict[str, float]:
+        """One update on the data of ``iteration``; returns its loss terms."""
+
+    @abstractmethod
+    def validate(self) -> dict[str, float]:
+        """Figures on fixed val windows (logged every ``val_every`` iterations and at the end)."""
+
+    @classmethod
+    def folder(cls, checkpoints: Path, seed: int) -> Path:
+        """Where the run of ``seed`` keeps its checkpoint and log."""
+        return checkpoints / f"{cls.FOLDER}_{seed}"
+
+    @property
+    def checkpoint(self) -> Path:
+        return self.dir / "checkpoint.pt"
+
+    @property
+    def log(self) -> Path:
+        return self.dir / "losses.jsonl"
+
+    def settings(self) -> dict:
+        """What a checkpoint must have been made with to be resumed: the config and the labels."""
+        return {"config": asdict(self.cfg), "styles": list(self.data.styles),
+                "contents": list(self.data.contents)}
+
+    def save(self) -> None:
+        self.dir.mkdir(parents=True, exist_ok=True)
+        tmp = self.checkpoint.with_suffix(".tmp")
+        torch.save({**self.settings(), **{name: getattr(self, name).state_dict() for name in self.PARTS},
+                    "state": self.state}, tmp)
+        tmp.replace(self.checkpoint)
+
+    def _load_parts(self, saved: dict) -> None:
+        for name in self.PARTS:
+            getattr(self, name).load_state_dict(saved[name])
+
+    def resume(self) -> bool:
+        """Continue from the checkpoint if there is one; log lines written after it are dropped."""
+        if not self.checkpoint.exists():
+            return False
+        saved = torch.load(self.checkpoint, weights_only=False)
+        if {k: saved[k] for k in ("config", "styles", "contents")} != self.settings():
+            raise MotionStyleError(
+                f"{self.checkpoint} was made with other settings or data; train without --resume "
+                "to start afresh, or use another --seed"
+            )
+        self._load_parts(saved)
+        self.state = saved["state"]
+        if self.log.exists():
+            kept = [line for line in self.log.read_text().splitlines()
+                    if json.loads(line)["iteration"] <= self.state["iteration"]]
+            self.log.write_text("".join(line + "\n" for line in kept))
+        return True
+
+    def initialise(self, checkpoint: Path, networks: tuple[str, ...]) -> None:
+        """Continue another run (its weights, optimiser states, iteration count and time) under this
+        run's other settings; the config fields ``networks`` and the data must be the same."""
+        if not checkpoint.exists():
+            raise MotionStyleError(f"{checkpoint}: no checkpoint to start from")
+        saved = torch.load(checkpoint, weights_only=False)
+        mine = self.settings()
+        if ([saved["config"].get(k) for k in networks] != [mine["config"][k] for k in networks]
+                or (saved["styles"], saved["contents"]) != (mine["styles"], mine["contents"])):
+            raise MotionStyleError(f"{checkpoint} has other networks or data than this run "
+                                   f"({', '.join(networks)}, styles and contents must match)")
+        self._load_parts(saved)
+        self.state = {**saved["state"], "init_from": {
+            "checkpoint": str(checkpoint), "iteration": saved["state"]["iteration"],
+            "train_seconds": round(saved["state"]["train_seconds"], 1), "config": saved["config"]}}
+
+    @classmethod
+    def started(cls, cfg, data: Data, checkpoints: Path, progress: bool, resume: bool):
+        """A trainer continuing from its checkpoint (``resume`` and there is one) or afresh."""
+        trainer = cls(cfg, data, checkpoints, progress)
+        if resume and trainer.resume():
+            print(f"resuming {trainer.checkpoint} at iteration {trainer.state['iteration']}")
+        elif not resume:
+            trainer.fresh_start()
+        return trainer
+
+    def fresh_start(self) -> None:
+        """Forget an earlier run's checkpoint and log (other files in the folder stay: a trainer
+        keys them by their own settings)."""
+        for path in (self.checkpoint, self.log):
+            path.unlink(missing_ok=True)
+
+    def _append_log(self, entry: dict) -> None:
+        self.dir.mkdir(parents=True, exist_ok=True)
+        with open(self.log, "a") as f:
+            f.write(json.dumps(entry) + "\n")
+
+    def _log_losses(self, recent: list[dict[str, float]], seconds: float) -> dict[str, float]:
+        """Log the mean of each loss term over the ``recent`` steps; returns the means."""
+        means = {k: round(float(np.mean([r[k] for r in recent])), 5) for k in recent[0]}
+        self._append_log({"iteration": self.state["iteration"], "seconds": round(seconds, 1), **means})
+        return means
+
+    def _log_validation(self, seconds: float) -> None:
+        self.state["val"].append({"iteration": self.state["iteration"], **self.validate()})
+        self._append_log({**self.state["val"][-1], "seconds": round(seconds, 1)})
+
+    def run(self, minutes: float | None = None, iterations: int | None = None, log_every: int = 25,
+            val_every: int = 500, checkpoint_minutes: float = 5.0) -> None:
+        """Train until ``minutes`` of training (over all resumed runs) or ``iterations`` in total."""
+        budget_s = float("inf") if minutes is None else 60.0 * minutes
+        last_iteration = iterations if iterations is not None else 2**62
+        state = self.state
+        started = time.perf_counter()
+
+        def spent() -> float:
+            return state["train_seconds"] + time.perf_counter() - started
+
+        last_save, recent = time.perf_counter(), []
+        bar = tqdm(total=iterations, initial=state["iteration"], desc=self.LABEL, unit="it",
+                   disable=not self.progress, mininterval=PROGRESS_INTERVAL)
+        while state["iteration"] < last_iteration and spent() < budget_s:
+            self.model.train()
+            recent.append(self.step(state["iteration"]))
+            state["iteration"] += 1
+            bar.update()
+            if state["iteration"] % log_every == 0 or state["iteration"] == last_iteration:
+                means = self._log_losses(recent, spent())
+                bar.set_postfix(**{k: means[k] for k in self.SHOWN},
+                                left=f"{max(budget_s - spent(), 0) / 60:.0f}min" if minutes else None,
+                                refresh=False)
+                recent = []
+            if state["iteration"] % val_every == 0:
+                self._log_validation(spent())
+            if time.perf_counter() - last_save > 60 * checkpoint_minutes:
+                state["train_seconds"] = spent()
+                started, last_save = time.perf_counter(), time.perf_counter()
+                self.save()
+        bar.close()
+        if recent:
+            self._log_losses(recent, spent())
+        if not state["val"] or state["val"][-1]["iteration"] != state["iteration"]:
+            self._log_validation(spent())
+        state["train_seconds"] = spent()
+        self.save()
+
+    def summary(self) -> dict:
+        """Loss history for the model card: first and last logged train losses, val history."""
+        train = [e for e in map(json.loads, self.log.read_text().splitlines()) if "rec" in e] \
+            if self.log.exists() else []
+        return {"iterations": self.state["iteration"],
+                "train_seconds": round(self.state["train_seconds"], 1),
+                "iterations_per_second": round(self.state["iteration"] / max(self.state["train_seconds"], 1e-9), 3),
+                "first_logged": train[0] if train else None, "last_logged": train[-1] if train else None,
+                "val": self.state["val"]}
+
+
+def run_record(trainer: ResumableTrainer, setup_seconds: float, command: str) -> dict:
+    """The card's account of a finished run: the command that continues it, seed, config, wall
+    time (setup and training over all resumed runs) and the loss history."""
+    return {"command": command, "seed": trainer.cfg.seed, "config": asdict(trainer.cfg),
+            "wall_time_s": round(trainer.state["train_seconds"] + setup_seconds, 1),
+            "history": trainer.summary()}
