@@ -38,11 +38,12 @@ def recurrent_model(path: str | Path, styles: Sequence[str], seed: int = 0, neut
     learned initial one where ``reset`` is 1):
 
     ``state_out = 0.7 s + 0.3 tanh(features A + s R)``;
-    ``output = base(features) + scale (tanh(state_out N) + alpha * sum_k style_k tanh(state_out S_k))``
+    ``output = base(features) + 0.05 tanh(state_out N) + 0.25 alpha sum_k style_k tanh(state_out S_k + P_k)``
 
     where ``base`` is the input frame with the root's speed halved and its height pulled halfway
-    to :data:`PELVIS_HEIGHT`, and the neutral style's branch ``S_neutral`` is zero: alpha 0 and the
-    neutral style give the same frame, as in the real model."""
+    to :data:`PELVIS_HEIGHT`, ``P_k`` is style k's own pose (the root's residuals are 0.05 at
+    most), and the neutral style's branch is zero: alpha 0 and the neutral style give the same
+    frame, as in the real model."""
     styles = list(styles)
     rng = np.random.default_rng(seed)
     n_styles, n = len(styles), state_size
@@ -74,7 +75,7 @@ def recurrent_model(path: str | Path, styles: Sequence[str], seed: int = 0, neut
         helper.make_node("Mul", ["s", "keep"], ["kept"]),
         helper.make_node("Mul", ["drive", "take"], ["taken"]),
         helper.make_node("Add", ["kept", "taken"], ["state_out"]),
-        *_base("features", "frame"),
+        _base("features", "frame"),
         helper.make_node("Mul", ["frame", "gain"], ["slowed"]),
         helper.make_node("Add", ["slowed", "offset"], ["base"]),
         helper.make_node("MatMul", ["state_out", "N"], ["neutral_in"]),
@@ -118,8 +119,9 @@ def windowed_model(path: str | Path, styles: Sequence[str], seed: int = 0, resid
     def drawn(rows: int, cols: int, gain: float = 1.0) -> np.ndarray:
         return rng.normal(0.0, gain / np.sqrt(rows), (rows, cols))
 
-    generator = {"F": drawn(N_FEATURES, hidden), "M": drawn(N_FEATURES, hidden), "C": drawn(style_dim, hidden),
-                 "U": drawn(hidden, N_OUT), "residual": np.float32(residual), **_slice_constants()}
+    generator = {"F": drawn(N_FEATURES, hidden), "M": drawn(N_FEATURES, hidden),
+                 "C": drawn(style_dim, hidden), "U": drawn(hidden, N_OUT), "residual": np.float32(residual),
+                 **_slice_constants()}
     _save(path, [
         helper.make_node("ReduceMean", ["features"], ["window_mean"], axes=[1], keepdims=1),
         helper.make_node("MatMul", ["features", "F"], ["per_frame"]),
@@ -132,7 +134,7 @@ def windowed_model(path: str | Path, styles: Sequence[str], seed: int = 0, resid
         helper.make_node("MatMul", ["hidden", "U"], ["change_in"]),
         helper.make_node("Tanh", ["change_in"], ["change"]),
         helper.make_node("Mul", ["change", "residual"], ["scaled"]),
-        *_base("features", "frame"),
+        _base("features", "frame"),
         helper.make_node("Add", ["frame", "scaled"], ["output"]),
     ], generator, WINDOWED, {"features": frames, "code": ["batch", style_dim],
                              "output": ["batch", "frames", N_OUT]})
@@ -163,9 +165,9 @@ def _slice_constants() -> dict[str, np.ndarray]:
             "last_axis": np.array([-1], dtype=np.int64), "axis1": np.array([1], dtype=np.int64)}
 
 
-def _base(features: str, out: str) -> list[onnx.NodeProto]:
+def _base(features: str, out: str) -> onnx.NodeProto:
     """The input's ``[root | rot6d]`` columns (the leading ``N_OUT`` features), any leading axes."""
-    return [helper.make_node("Slice", [features, "first", "out_end", "last_axis"], [out])]
+    return helper.make_node("Slice", [features, "first", "out_end", "last_axis"], [out])
 
 
 def _matmul_add_tanh(a: str, wa: str, b: str, wb: str, out: str) -> list[onnx.NodeProto]:
@@ -180,8 +182,9 @@ def _save(path: Path, nodes: list[onnx.NodeProto], weights: dict[str, np.ndarray
           shapes: dict[str, list]) -> None:
     """The graph with float32 (int64 kept) initialisers and the contract's inputs and outputs in
     order, checked by onnx before it is written."""
-    inits = [numpy_helper.from_array(np.asarray(v) if np.asarray(v).dtype == np.int64
-                                     else np.asarray(v, dtype=np.float32), name) for name, v in weights.items()]
+    arrays = {name: np.asarray(v) for name, v in weights.items()}
+    inits = [numpy_helper.from_array(a if a.dtype == np.int64 else a.astype(np.float32), name)
+             for name, a in arrays.items()]
     io = {name: helper.make_tensor_value_info(name, TensorProto.FLOAT, shapes[name])
           for name in (*contract.inputs, *contract.outputs)}
     graph = helper.make_graph(nodes, path.stem, [io[n] for n in contract.inputs],

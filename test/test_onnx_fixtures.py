@@ -39,7 +39,8 @@ def test_the_recurrent_stand_in_has_the_shipped_interface_and_card(tmp_path):
     fake_card = read_card(fake)
     check_card(fake_card, fake, "recurrent")
     state = card["state_size"]
-    expected = [(n, t, [fake_card["state_size"] if d == state else d for d in s]) for n, t, s in signature(real)]
+    expected = [(name, kind, [fake_card["state_size"] if d == state else d for d in shape])
+                for name, kind, shape in signature(real)]
     assert signature(fake) == expected
     assert set(card) - DESCRIPTIVE <= set(fake_card)
     assert fake_card["feature_layout"] == card["feature_layout"] and fake_card["fps"] == card["fps"]
@@ -54,7 +55,8 @@ def test_the_windowed_stand_ins_have_the_shipped_interfaces_and_card(tmp_path):
     check_card(fake_card, fake, "windowed")
     assert signature(fake) == signature(real)
     for kind in ("mapping", "style_encoder"):
-        assert signature(fake.with_name(fake_card["files"][kind])) == signature(real.with_name(card["files"][kind]))
+        companion = signature(real.with_name(card["files"][kind]))
+        assert signature(fake.with_name(fake_card["files"][kind])) == companion
     assert set(card) - DESCRIPTIVE <= set(fake_card)
     assert fake_card["feature_layout"] == card["feature_layout"] and fake_card["fps"] == card["fps"]
 
@@ -80,7 +82,8 @@ def test_the_recurrent_stand_in_answers_to_every_input(tmp_path):
     assert np.abs(run(state=state[[1, 2, 0]])["output"] - base["output"]).max() > 1e-3
     garbage = np.full_like(state, np.nan)
     fresh = run(reset=ones, state=garbage)  # reset: the learned initial state, whatever came in
-    assert np.array_equal(fresh["output"], run(reset=ones)["output"]) and np.isfinite(fresh["state_out"]).all()
+    assert np.array_equal(fresh["output"], run(reset=ones)["output"])
+    assert np.isfinite(fresh["state_out"]).all()
     assert np.abs(run(features=x[[1, 2, 0]])["output"] - base["output"]).max() > 1e-2
 
 
