@@ -1,7 +1,8 @@
 """Training data for every trainer: Bandai takes as encoded feature clips with style and content
 indices, their augmentation (speeds, mirroring), windows drawn from them (of any style, or one of
-each style asked for) with the targets of a transfer, and the feature normalisation. Which takes and augmentations a run uses is its config's ``datasets``, ``speeds``,
-``balance``, ``mirror`` and ``exclude`` fields (:func:`load_for`)."""
+each style asked for) with the targets of a transfer, and the feature normalisation. Which takes
+and augmentations a run uses is its config's ``datasets``, ``speeds``, ``balance``, ``mirror`` and
+``exclude`` fields (:class:`DataConfig`, :func:`load_for`)."""
 
 from __future__ import annotations
 

@@ -119,7 +119,8 @@ class ResumableTrainer(ABC):
             "train_seconds": round(saved["state"]["train_seconds"], 1), "config": saved["config"]}}
 
     @classmethod
-    def started(cls, cfg, data: Data, checkpoints: Path, progress: bool, resume: bool):
+    def started(cls, cfg: DataConfig, data: Data, checkpoints: Path, progress: bool, resume: bool
+                ) -> ResumableTrainer:
         """A trainer continuing from its checkpoint (``resume`` and there is one) or afresh."""
         trainer = cls(cfg, data, checkpoints, progress)
         if resume and trainer.resume():

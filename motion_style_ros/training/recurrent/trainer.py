@@ -49,8 +49,8 @@ NAME = "style_erd"
 
 @dataclass(frozen=True)
 class Config(DataConfig):
-    """Everything that shapes the result, the seed and data fields of :class:`DataConfig` first;
-    a checkpoint resumes only under the same config."""
+    """Everything that shapes a Style-ERD run, the seed and data fields of :class:`DataConfig`
+    first; a checkpoint resumes only under the same config."""
 
     # generator (see models.style_erd.ErdConfig). Shallower and wider than the paper's 6 + 4 LSTM
     # layers of width 32: on 2 CPU cores the deep stacks had barely started to reconstruct after

@@ -53,8 +53,8 @@ NAME = "stgcn"
 
 @dataclass(frozen=True)
 class Config(DataConfig):
-    """Everything that shapes the result, the seed and data fields of :class:`DataConfig` first;
-    a checkpoint resumes only under the same config."""
+    """Everything that shapes an ST-GCN run, the seed and data fields of :class:`DataConfig`
+    first; a checkpoint resumes only under the same config."""
 
     # networks (models.stgcn.StgcnConfig); the paper's widths are (64, 128, 256)
     window: int = 48
