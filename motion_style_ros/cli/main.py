@@ -13,8 +13,8 @@ The module is imported to build the parser, so it must stay light at import time
 onnxruntime, rclpy, matplotlib and the like inside ``run()``, never at module level
 (``motion-style --help`` must stay fast; test/test_package.py checks it).
 
-User mistakes are reported by raising ``motion_style_ros.errors.MotionStyleError`` (or
-``FileNotFoundError`` / ``ValueError``): main() prints ``motion-style: error: <message>`` and exits
+User mistakes are reported by raising ``motion_style_ros.errors.MotionStyleError`` (or an
+``OSError`` such as ``FileNotFoundError``, or a ``ValueError``): main() prints ``motion-style: error: <message>`` and exits
 with 2, no traceback. ``--traceback`` (or MOTION_STYLE_TRACEBACK=1) shows the traceback instead.
 """
 
@@ -75,8 +75,8 @@ def build_parser():
 
 
 def _describe(exc):
-    if isinstance(exc, FileNotFoundError) and exc.filename:
-        return f"{exc.strerror or 'file not found'}: {exc.filename}"
+    if isinstance(exc, OSError) and exc.filename:
+        return f"{exc.strerror or type(exc).__name__}: {exc.filename}"
     return str(exc) or type(exc).__name__
 
 
@@ -89,16 +89,16 @@ def main(argv=None):
         return 2
     try:
         return int(args.func(args) or 0)
-    except (MotionStyleError, FileNotFoundError, ValueError) as exc:
+    except BrokenPipeError:  # output piped into `head` and the like (an OSError: caught first)
+        sys.stderr.close()
+        return 141
+    except (MotionStyleError, OSError, ValueError) as exc:  # OSError: a path that is a folder, ...
         if args.traceback or os.environ.get("MOTION_STYLE_TRACEBACK"):
             raise
         print(f"{PROG}: error: {_describe(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130
-    except BrokenPipeError:  # output piped into `head` and the like
-        sys.stderr.close()
-        return 141
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ URDF text, and the robot descriptions this package is tested with ship without m
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -72,12 +73,17 @@ def read(path: str | Path) -> RobotModel:
     path = Path(path)
     if not path.is_file():
         raise MotionStyleError(f"{path}: no such URDF file")
+    log = logging.getLogger("yourdfpy")
+    level = log.level
+    log.setLevel(logging.CRITICAL)  # it logs a parse error as it retries; the one it raises is ours
     try:
         urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
                                   build_collision_scene_graph=False, load_collision_meshes=False)
     except Exception as exc:  # lxml / yourdfpy raise many kinds on a bad file
         problem = " ".join(str(exc).split()) or type(exc).__name__
         raise MotionStyleError(f"{path}: not a readable URDF ({problem[:200]})") from None
+    finally:
+        log.setLevel(level)
     robot = urdf.robot
     if robot is None or not robot.links:
         raise MotionStyleError(f"{path}: the URDF has no links")

@@ -614,8 +614,9 @@ class VmcSender:
     """Streams frames to a VMC marionette (an avatar host) over UDP, one bundle per frame."""
 
     def __init__(self, host: str, port: int) -> None:
+        """Raises OSError for a host that does not resolve (once, here, not with every send)."""
+        self._address = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)[0][4]
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._address = (host, port)
 
     def send(self, frame: VmcFrame, time: float) -> None:
         self.send_packet(frame_bundle(frame, time))

@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
@@ -102,15 +102,19 @@ def _init(args) -> None:
             os.close(saved)
 
 
+def _one_line(exc: Exception) -> str:
+    """An error's message on one line, without rcl's C source locations."""
+    return re.sub(r",? at /\S+:\d+", "", " ".join(str(exc).split()))
+
+
 def run(make_node: Callable[[], Node], name: str, args=None) -> int:
     """Init, build the node (``name`` is its default node name, for the log before it exists), spin
     until it is done or interrupted; 2 when it cannot start (bad ROS arguments or parameter files
-    included: rclpy.init's error, without its C source locations)."""
+    included: rclpy.init's error; a topic name rcl refuses)."""
     try:
         _init(args)
     except RCLError as exc:
-        message = re.sub(r",? at /\S+:\d+", "", " ".join(str(exc).split()))
-        rclpy.logging.get_logger(name).error(f"cannot start: {message}")
+        rclpy.logging.get_logger(name).error(f"cannot start: {_one_line(exc)}")
         return 2
     node = None
     try:
@@ -121,9 +125,9 @@ def run(make_node: Callable[[], Node], name: str, args=None) -> int:
         gc.collect()
         gc.freeze()
         rclpy.spin_until_future_complete(node, node.done)
-    except (MotionStyleError, ParameterException, UnicodeDecodeError) as exc:
-        message = " ".join(str(exc).split())
-        (node.get_logger() if node else rclpy.logging.get_logger(name)).error(message)
+    except (MotionStyleError, ParameterException, NameValidationException, RCLError,
+            UnicodeDecodeError) as exc:
+        (node.get_logger() if node else rclpy.logging.get_logger(name)).error(_one_line(exc))
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

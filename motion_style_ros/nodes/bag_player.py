@@ -34,6 +34,8 @@ class BagPlayer(PlayerNode):
         if not bag:
             raise MotionStyleError("parameter bag is empty; give a bag: --ros-args -p bag:=my_bag")
         self.messages = list(read_raw(bag))
+        if not self.messages:
+            raise MotionStyleError(f"{bag}: its JointState topics hold no messages; nothing to play")
         topics = sorted({t for t, _, _ in self.messages})
         self.publishers_by_topic = {
             t: self.create_publisher(JointState, topic or t, qos_profile_sensor_data) for t in topics}

@@ -74,6 +74,13 @@ class VmcBridge(PlayerNode):
         self._start_ns = time.time_ns()  # /VMC/Ext/T goes out as seconds since this
         self._delay_ns = max(0, round(self.latency * 1e9))
         self._output = output_topic
+        self._sender = None
+        if send_port > 0:
+            try:
+                self._sender = VmcSender(send_host, send_port)
+            except OSError as exc:
+                raise MotionStyleError(f"cannot send VMC to udp://{send_host}:{send_port}: "
+                                       f"{exc.strerror or exc}") from None
         # Bind before advertising: once the publisher is visible, the port is open.
         try:
             self.receiver = VmcReceiver(self._on_frame, osc_host, osc_port)
@@ -83,9 +90,7 @@ class VmcBridge(PlayerNode):
         self._publisher = self.create_publisher(JointState, output_topic, qos)
         self._blend_publisher = self.create_publisher(JointState, blend_topic, qos)
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self._sender = None
-        if send_port > 0:
-            self._sender = VmcSender(send_host, send_port)
+        if self._sender:
             self.create_subscription(JointState, input_topic, self._on_state, qos)
             if self.latency < 0:
                 self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 10)
@@ -164,8 +169,9 @@ class VmcBridge(PlayerNode):
         self._diagnostics.publish(array)
 
     def destroy_node(self) -> None:
-        self.receiver.close()
-        if self._sender is not None:
+        if hasattr(self, "receiver"):  # none when the bridge could not start
+            self.receiver.close()
+        if getattr(self, "_sender", None) is not None:
             self._sender.close()
         super().destroy_node()
 
