@@ -29,6 +29,8 @@ def files(tmp_path_factory):
     lines = motion.strip().splitlines()
     first = lines[2].split()
     first[4] = "nan"
+    huge = lines[3].split()
+    huge[0] = "1e30"
     binary = np.random.default_rng(0).integers(0, 256, 4096, dtype=np.uint8).tobytes()
     assert b"MOTION" not in binary
     (d / "binary.bvh").write_bytes(binary)
@@ -37,6 +39,7 @@ def files(tmp_path_factory):
     (d / "empty.bvh").write_bytes(b"")
     (d / "truncated.bvh").write_text(good[: 2 * len(good) // 3])
     (d / "nan.bvh").write_text("\n".join([head + "MOTION", *lines[:2], " ".join(first), *lines[3:]]))
+    (d / "huge.bvh").write_text("\n".join([head + "MOTION", *lines[:3], " ".join(huge), *lines[4:]]))
     (d / "zero_frames.bvh").write_text(head + "MOTION\nFrames: 0\nFrame Time: 0.0333333\n")
     (d / "alien.bvh").write_text(
         "HIERARCHY\nROOT Blob\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation "
@@ -69,6 +72,7 @@ NODE_CASES = [
     ("bvh_player", {"file": "{d}/empty.bvh"}, "no MOTION section"),
     ("bvh_player", {"file": "{d}/truncated.bvh"}, "(truncated)"),
     ("bvh_player", {"file": "{d}/nan.bvh"}, "non-finite value at frame 0"),
+    ("bvh_player", {"file": "{d}/huge.bvh"}, "value 1e+30 (a corrupt file) at frame 1, channel 0"),
     ("bvh_player", {"file": "{d}/zero_frames.bvh"}, "has 0 frames"),
     ("bvh_player", {"file": "{d}/alien.bvh"}, "not a humanoid skeleton"),
     ("bvh_player", {"file": "{d}/folder.bvh"}, "Is a directory"),
@@ -120,6 +124,7 @@ CLI_CASES = [
     ("stylize {d}/good.bvh -o {d}/out.bvh --style active --model {d}/garbage.onnx", "not valid JSON"),
     ("retarget {d}/truncated.bvh {d}/out.bvh", "(truncated)"),
     ("retarget {d}/good.bvh {d}/folder.bvh", "Is a directory"),
+    ("retarget {d}/huge.bvh {d}/out.bvh", "a corrupt file"),
     ("style add mine {d}/binary.bvh --bank {d}/bank.json", "no MOTION section"),
     ("style add Bad! {d}/good.bvh --bank {d}/bank.json", "style name"),
     ("robot map {d}/good.bvh --urdf {d}/text.bvh --out {d}/out.csv", "not a readable URDF"),

@@ -22,6 +22,7 @@ from motion_style_ros.errors import MotionStyleError
 _POSITION = ("Xposition", "Yposition", "Zposition")
 _ROTATION = ("Xrotation", "Yrotation", "Zrotation")
 _NUMBER_BYTES = b"0123456789.+-eE \t\n\r\f\v"  # digits, signs, exponents, whitespace
+MAX_VALUE = 1e9  # no channel of a capture holds more (cm: 10,000 km; degrees: 2.8 million turns)
 
 
 class BvhError(MotionStyleError):
@@ -215,10 +216,11 @@ def read(path: str | Path) -> BvhClip:
     except ValueError:
         bad = next(v for v in values if not _is_number(v))
         raise BvhError(f"{path}: motion data holds a non-number {bad!r}") from None
-    bad = ~np.isfinite(data)
+    bad = ~(np.abs(data) <= MAX_VALUE)  # NaN too
     if bad.any():
         f, c = np.argwhere(bad)[0]
-        raise BvhError(f"{path}: non-finite value at frame {f}, channel {c}")
+        what = "non-finite value" if not np.isfinite(data[f, c]) else f"value {data[f, c]:g} (a corrupt file)"
+        raise BvhError(f"{path}: {what} at frame {f}, channel {c}")
 
     # The pelvis carries the trajectory: the first joint whose position channels move (Bandai files
     # keep a static joint_Root above the Hips).
