@@ -140,3 +140,18 @@ def test_an_unstamped_frame_goes_out_on_the_streams_clock(frames):
     assert [s for _, _, s, _ in out.states] == [T0, T0 + 1000]
     level, message, _ = performer.status(CONTROLS, "recurrent", 1e3)
     assert (level, message) == (OK, "2 frames in, 2 out, 0 dropped")
+
+
+def test_a_performer_far_from_the_origin_is_stylized_as_at_the_origin(frames):
+    """An hour's walk takes a performer kilometres out: still inside the intake's box, and the
+    stylized motion is the same, moved (to float precision)."""
+    near, far = Recorded(), Recorded()
+    out, base = stream(far), stream(near)
+    offset = np.zeros(len(LAYOUT.names))
+    offset[:2] = 5000.0, -3000.0  # root_tx, root_ty: 5.8 km out on the floor
+    for k, values in enumerate(frames):
+        base.frame(LAYOUT.names, values, T0 + k * PERIOD, T0 + k * PERIOD, "")
+        out.frame(LAYOUT.names, values + offset, T0 + k * PERIOD, T0 + k * PERIOD, "")
+    assert out.dropped == 0 and len(far.states) == len(near.states) == len(frames)
+    moved = np.array([p for _, p, _, _ in far.states]) - offset
+    np.testing.assert_allclose(moved, [p for _, p, _, _ in near.states], atol=1e-6)

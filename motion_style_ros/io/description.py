@@ -22,7 +22,7 @@ from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.io.joint_state import AXES, to_ros
 
 ROOT_LINK = "world"
-ROOT_RANGE = 1000.0  # m: the prismatic root joints' limits (the stylizer's max_root_distance)
+ROOT_RANGE = 1e5  # m: the prismatic root joints' limits (the stylizer's max_root_distance)
 BONE_RADIUS = 0.015  # m
 _AXIS = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}
 

@@ -54,7 +54,9 @@ class Bounds:
 
     max_stamp_jump: float = 1.0  # s
     restart_seconds: float = 0.25  # s
-    max_root_distance: float = 1000.0  # m, per axis
+    # m, per axis: a mocap volume, a game world, a robot walking for a day stay well inside; a
+    # corrupt value (1e30) does not. The stream is translation-invariant this far out (1e-7).
+    max_root_distance: float = 1e5
     max_root_speed: float = 20.0  # m/s (sprinters peak near 12)
     max_angle: float = 1e4  # rad
 
