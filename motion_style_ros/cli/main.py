@@ -14,8 +14,9 @@ onnxruntime, rclpy, matplotlib and the like inside ``run()``, never at module le
 (``motion-style --help`` must stay fast; test/test_package.py checks it).
 
 User mistakes are reported by raising ``motion_style_ros.errors.MotionStyleError`` (or an
-``OSError`` such as ``FileNotFoundError``, or a ``ValueError``): main() prints ``motion-style: error: <message>`` and exits
-with 2, no traceback. ``--traceback`` (or MOTION_STYLE_TRACEBACK=1) shows the traceback instead.
+``OSError`` such as ``FileNotFoundError``, or a ``ValueError``): main() prints
+``motion-style: error: <message>`` and exits with 2, no traceback. ``--traceback`` (or
+MOTION_STYLE_TRACEBACK=1) shows the traceback instead.
 """
 
 import argparse
