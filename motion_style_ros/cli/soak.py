@@ -69,6 +69,7 @@ def run(args) -> int:
               "frames in / out / dropped in that minute, end-to-end latency p50 / p99 / max (ms)")
         start, last = time.monotonic(), None
         cpu0 = (_cpu_seconds(stylizer.pid), start)
+        every: list[np.ndarray] = []  # each minute's latencies (ms), for the whole run's percentiles
         for minute in range(1, int(np.ceil(args.minutes)) + 1):
             latencies.clear()
             graph.spin_for(min(60.0, args.minutes * 60 - (minute - 1) * 60))
@@ -79,6 +80,7 @@ def run(args) -> int:
             delta = {k: counts[k] - (last or {}).get(k, 0) for k in counts} if last else counts
             last = counts
             ms = np.array(latencies) / 1e6
+            every.append(ms)
             p50, p99, worst = np.percentile(ms, [50, 99, 100]) if len(ms) else [np.nan] * 3
             row = {"minute": minute, "rss_mb": round(_rss_mb(stylizer.pid), 1), "cpu_percent": round(cpu, 1),
                    **delta, "latency_p50_ms": round(p50, 2), "latency_p99_ms": round(p99, 2),
@@ -87,9 +89,16 @@ def run(args) -> int:
             print(" ".join(f"{k} {v}" for k, v in row.items()), flush=True)
     recorded = {t: len(bags.read_joint_states(bag, [t])) for t in ("/joint_states", "/stylized/joint_states")}
     growth = rows[-1]["rss_mb"] - rows[0]["rss_mb"]
+    ms = np.concatenate(every)
+    whole = {"frames_in": last["frames_in"], "frames_out": last["frames_out"], "dropped": last["dropped"],
+             "cpu_percent_mean": round(float(np.mean([r["cpu_percent"] for r in rows])), 1),
+             **{f"latency_{k}_ms": round(float(v), 2) if len(ms) else None
+                for k, v in zip(("p50", "p99", "p999", "max"),
+                                np.percentile(ms, [50, 99, 99.9, 100]) if len(ms) else [0] * 4)}}
     summary = {"minutes": args.minutes, "rate_hz": args.rate, "rss_growth_after_minute_1_mb": round(growth, 1),
-               "bag_frames": recorded, "rows": rows}
+               "whole_run": whole, "bag_frames": recorded, "rows": rows}
     (out / "soak.json").write_text(json.dumps(summary, indent=1) + "\n")
+    print("whole run: " + " ".join(f"{k} {v}" for k, v in whole.items()))
     print(f"memory growth after the first minute: {growth:+.1f} MB; bag {bag}: "
           f"{recorded['/joint_states']} input and {recorded['/stylized/joint_states']} stylized frames; "
           f"wrote {out / 'soak.json'}")
