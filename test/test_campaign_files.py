@@ -119,6 +119,7 @@ CLI_CASES = [
     ("stylize {d}/good.bvh -o {d}/out.bvh --style active --alpha high", "invalid float value"),
     ("stylize {d}/good.bvh -o {d}/out.bvh --style active --alpha 5", "alpha must be in [0, 1]"),
     ("stylize {d}/good.bvh -o {d}/out.bvh --style sad", "unknown style 'sad'"),
+    ("stylize {d}/good.bvh -o {d}/out.bvh --style active --threads 0", "threads must be a whole number, at least 1"),
     ("stylize {d}/good.bvh -o {d}/out.bvh --style active --backend nope", "invalid choice: 'nope'"),
     ("stylize {d}/good.bvh -o {d}/out.bvh --style active --model {d}/missing.onnx", "not found"),
     ("stylize {d}/good.bvh -o {d}/out.bvh --style active --model {d}/garbage.onnx", "not valid JSON"),

@@ -56,6 +56,9 @@ class OnnxModel:
     """
 
     def __init__(self, path: str | Path, threads: int = 1) -> None:
+        # 0 would let ONNX Runtime take every core: for one small model per frame, it never pays
+        if isinstance(threads, bool) or not (isinstance(threads, int) and threads >= 1):
+            raise MotionStyleError(f"ONNX Runtime threads must be a whole number, at least 1; got {threads!r}")
         self.path = Path(path)
         try:
             stat = self.path.stat()
