@@ -53,3 +53,24 @@ def test_bench_soak_samples_every_minute_and_reads_the_bag_back(tmp_path, ros_en
     assert rss > 50 and cpu > 0 and frames_in >= 200 and frames_out <= frames_in and p50 > 0
     summary = json.loads((tmp_path / "soak.json").read_text())
     assert summary["bag_frames"]["/joint_states"] > 200 and summary["bag_frames"]["/stylized/joint_states"] > 200
+
+
+def test_bench_faults_times_both_restarts_and_reads_the_bag_back(tmp_path, ros_env):
+    """One cycle: the performer and then the stylizer killed and started again; both come back and
+    the bag holds the input's frames and only stylized frames of real input frames."""
+    import json
+
+    result = subprocess.run(
+        [sys.executable, "-m", "motion_style_ros.cli.main", "bench", "faults", "--cycles", "1",
+         "--rate", "60", "--pause", "0.5", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=400, env=ros_env,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    summary = json.loads((tmp_path / "faults.json").read_text())
+    (cycle,) = summary["cycles"]
+    assert cycle["performer_first_frame_ms"] > 0 and cycle["then_first_stylized_ms"] >= 0
+    assert cycle["stylizer_first_stylized_ms"] > 0
+    bag = summary["bag"]
+    assert bag["input_frames"] > 60 and bag["stylized_frames"] > 60
+    assert bag["of_them_while_the_stylizer_was_down"] == 0  # the stylizer's fault costs the recording nothing
+    assert bag["stylized_stamps_not_an_input_stamp"] == 0

@@ -27,7 +27,12 @@ def declared(node: str) -> set[str]:
     and ``self.stream_qos()`` as ``qos_...``; nodes/__init__.py defines both)."""
     source = (ROOT / "motion_style_ros" / "nodes" / f"{node}.py").read_text()
     prefixes = re.findall(r'self\.qos\(\s*"(\w+)"', source) + ["qos"] * ("self.stream_qos(" in source)
-    return (set(re.findall(r'self\.param\(\s*"(\w+)"', source))
+    table = set()
+    if node == "stylizer":  # the stylizer declares its table (runtime.stylizer_settings)
+        from motion_style_ros.runtime.stylizer_settings import NAMES
+
+        table = set(NAMES)
+    return (set(re.findall(r'self\.param\(\s*"(\w+)"', source)) | table
             | {f"{p}_{kind}" for p in prefixes for kind in ("reliability", "depth")})
 
 

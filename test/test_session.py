@@ -52,7 +52,7 @@ def test_stepping_equals_direct_onnx_runs(model, clips):
     """Without foot locking, grounding and conditioning, the session is encode -> the ONNX graph
     with its state carried -> decode, nothing else."""
     walk = clips[0]
-    session = RecurrentSession(model, foot_lock=False, ground=False, conform=False)
+    session = RecurrentSession(model, foot_lock=False, ground=False, conform=False, follow_seconds=None)
     session.set_style("elderly")
     q, p = stream(session, *frames(walk))
 
@@ -78,8 +78,8 @@ def test_stepping_equals_direct_onnx_runs(model, clips):
 
 def test_foot_locking_changes_the_legs_only(model, clips):
     walk = clips[0]
-    free = RecurrentSession(model, foot_lock=False).run(walk, "elderly")
-    locked = RecurrentSession(model).run(walk, "elderly")
+    free = RecurrentSession(model, foot_lock=False, follow_seconds=None).run(walk, "elderly")
+    locked = RecurrentSession(model, follow_seconds=None).run(walk, "elderly")
     legs = [walk.skeleton.index(f"{b}_{s}") for b in ("UpperLeg", "LowerLeg", "Foot") for s in "LR"]
     others = [j for j in range(walk.skeleton.n_joints) if j not in legs]
     assert np.allclose(locked.rotations[:, others], free.rotations[:, others])
@@ -442,8 +442,8 @@ def test_an_anchored_root_is_only_ever_held_back(clips):
     # The shipped model's "active" walks faster than a normal walk's legs carry it: the foot lock
     # holds the root back (anchor_root), along its own path, never backwards, never up or down.
     walk = clips[0]
-    anchored = RecurrentSession("style_erd.onnx")
-    free = RecurrentSession("style_erd.onnx")
+    anchored = RecurrentSession("style_erd.onnx", follow_seconds=None)
+    free = RecurrentSession("style_erd.onnx", follow_seconds=None)
     free._foot_lock.anchor_root = False
     a, f = (s.run(walk, "active").positions[:, walk.skeleton.pelvis] for s in (anchored, free))
     assert np.allclose(a[:, 1], f[:, 1])
@@ -457,7 +457,7 @@ def test_an_anchored_root_is_only_ever_held_back(clips):
 
 def test_calibration_says_what_the_stream_has_shown(model):
     from motion_style_ros.core.synthetic import synthetic_motion
-    from motion_style_ros.runtime.session import describe_calibration
+    from motion_style_ros.runtime.stream import describe_calibration
 
     walk, wave = synthetic_motion("walk", 30.0, 4.0), synthetic_motion("wave", 30.0, 4.0)
     session = RecurrentSession(model)

@@ -62,7 +62,8 @@ def test_overlap_add_of_identity_windows_reproduces_the_input_exactly():
 @pytest.mark.parametrize("lookahead,hop", [(0, 4), (8, 8), (16, 4), (32, 8)])
 def test_identity_generator_streams_the_input_back_aligned(identity_model, walk, lookahead, hop):
     """Windows, overlap-add, latency, decoding and run()'s alignment add nothing of their own."""
-    session = WindowedSession(identity_model, window=48, lookahead=lookahead, hop=hop, foot_lock=False)
+    session = WindowedSession(identity_model, window=48, lookahead=lookahead, hop=hop, foot_lock=False,
+                              follow_seconds=None)
     assert session.latency == pytest.approx(lookahead / 30)
     out = session.run(walk, "elderly")
     assert out.n_frames == walk.n_frames
@@ -70,7 +71,8 @@ def test_identity_generator_streams_the_input_back_aligned(identity_model, walk,
 
 
 def test_streaming_holds_the_first_frame_for_the_lookahead_then_lags(identity_model, walk):
-    session = WindowedSession(identity_model, window=48, lookahead=8, hop=4, foot_lock=False, conform=False)
+    session = WindowedSession(identity_model, window=48, lookahead=8, hop=4, foot_lock=False, conform=False,
+                              follow_seconds=None)
     roots = walk.root_positions
     out = np.array([session.step(walk.rotations[t], roots[t], t / 30)[1] for t in range(40)])
     assert np.abs(out[:9] - roots[0]).max() < 1e-6  # frame 0 held until frame 8 arrives
@@ -191,7 +193,7 @@ def test_bad_reference_clips_are_rejected_with_a_reason(random_model, walk, data
 def test_the_offline_stylizer_streams_clips_through_the_session(identity_model, walk):
     from motion_style_ros.runtime.offline import stylizer
 
-    out = stylizer("stgcn", str(identity_model))(walk, "elderly")
+    out = stylizer("stgcn", str(identity_model), follow_seconds=None)(walk, "elderly")
     assert out.n_frames == walk.n_frames
     # foot locking (on by default) may turn the legs; everything else is the input
     upper = [j for j, name in enumerate(walk.skeleton.names) if "Leg" not in name and "Foot" not in name
@@ -230,6 +232,7 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
 
 def test_reference_stylizer_takes_its_code_from_another_content(random_model, datasets):
     from motion_style_ros.evaluation.harness import SkipPair
+    from motion_style_ros.evaluation.harness import PUBLISHED
     from motion_style_ros.evaluation.windowed import ReferenceStylizer
 
     names = [("walk", "normal", "001"), ("walk", "elderly", "008"), ("run", "elderly", "001")]
@@ -240,7 +243,7 @@ def test_reference_stylizer_takes_its_code_from_another_content(random_model, da
     source = clips[0][1]
     out = stylize(source, "elderly")  # the run, not the elderly walk, gives the code
     assert out.n_frames == source.n_frames and np.isfinite(out.global_positions()).all()
-    session = WindowedSession(random_model)
+    session = WindowedSession(random_model, **PUBLISHED)
     session.set_reference(clips[2][1], style="elderly")
     expected = session.run(source, "elderly")
     assert np.array_equal(out.global_positions(), expected.global_positions())
