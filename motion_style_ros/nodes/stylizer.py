@@ -10,9 +10,10 @@ reference clip change live through parameters and blend in over ``blend_seconds`
 starts every stream afresh. Bad messages are dropped and counted per reason; the counts, frame
 counts and processing latency go to ``/diagnostics`` once a second.
 
-This module is the ROS shell: parameters, publishers, subscriptions, services and messages. What
-happens to a frame is :mod:`motion_style_ros.runtime.performer`'s; the parameters, their checks and
-how a change reaches the sessions are :mod:`motion_style_ros.runtime.stylizer_settings`'.
+This module is the ROS shell: parameters, subscriptions, services and diagnostics; the publishers
+and their messages are :mod:`motion_style_ros.nodes.stylizer_outputs`'. What happens to a frame is
+:mod:`motion_style_ros.runtime.performer`'s; the parameters, their checks and how a change reaches
+the sessions are :mod:`motion_style_ros.runtime.stylizer_settings`'.
 """
 
 from __future__ import annotations
@@ -20,103 +21,26 @@ from __future__ import annotations
 import sys
 from collections import deque
 
-import numpy as np
-from builtin_interfaces.msg import Duration, Time
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PoseStamped
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.exceptions import InvalidTopicNameException
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile
 from rclpy.subscription import MessageInfo
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
-from visualization_msgs.msg import Marker, MarkerArray
 
-from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.io.joint_state import JointStateLayout, to_ros
-from motion_style_ros.nodes import Parameters, PlayerNode, joint_state, run
+from motion_style_ros.io.joint_state import JointStateLayout
+from motion_style_ros.nodes import Parameters, PlayerNode, run
+from motion_style_ros.nodes.stylizer_outputs import Performer
 from motion_style_ros.runtime import stylizer_settings as settings_
 from motion_style_ros.runtime.performer import PerformerStream, seconds
 from motion_style_ros.runtime.references import REVERT, References
 from motion_style_ros.runtime.robot_target import RobotTarget
-from motion_style_ros.runtime.trajectory import Chunk, Chunker
+from motion_style_ros.runtime.trajectory import Chunker
 
 NAME = "stylizer"
 LEVELS = {0: DiagnosticStatus.OK, 1: DiagnosticStatus.WARN, 2: DiagnosticStatus.ERROR}
-
-
-def stamp(ns: int) -> Time:
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-
-
-class Performer:
-    """One performer's publishers and subscription: the :class:`~motion_style_ros.runtime.performer.Outputs`
-    of its :class:`~motion_style_ros.runtime.performer.PerformerStream`."""
-
-    def __init__(self, node: StylizerBase, prefix: str, qos: QoSProfile, trajectory_qos: QoSProfile,
-                 markers: bool, robot: bool) -> None:
-        self.node, self.prefix, self.qos = node, prefix, qos
-        try:
-            self.state_out = node.create_publisher(JointState, self.topic("stylized/joint_states"), qos)
-            self.trajectory_out = node.create_publisher(JointTrajectory, self.topic("stylized/trajectory"),
-                                                        trajectory_qos)
-            self.markers_out = (node.create_publisher(MarkerArray, self.topic("stylized/markers"), qos)
-                                if markers else None)
-            self.robot_outs = (
-                node.create_publisher(JointState, self.topic("stylized/robot/joint_states"), qos),
-                node.create_publisher(JointTrajectory, self.topic("stylized/robot/trajectory"), trajectory_qos),
-                node.create_publisher(PoseStamped, self.topic("stylized/robot/base_pose"), qos),
-            ) if robot else ()
-        except InvalidTopicNameException as exc:
-            raise MotionStyleError(f"parameter performers: {exc}") from None
-        self.input = node.resolve_topic_name(self.topic("joint_states"))
-        self.subscription = None
-        self.stream: PerformerStream | None = None
-
-    def topic(self, name: str) -> str:
-        return f"{self.prefix.rstrip('/')}/{name}" if self.prefix else name
-
-    def subscribe(self) -> None:
-        self.subscription = self.node.create_subscription(
-            JointState, self.topic("joint_states"), lambda msg, info: self.node.on_state(self, msg, info),
-            self.qos)
-
-    def destroy(self, publishers: bool) -> None:
-        """Stop listening (and, with ``publishers``, publishing)."""
-        if self.subscription is not None:
-            self.node.destroy_subscription(self.subscription)
-            self.subscription = None
-        if publishers:
-            for pub in (self.state_out, self.trajectory_out, self.markers_out, *self.robot_outs):
-                if pub is not None:
-                    self.node.destroy_publisher(pub)
-
-    # --- Outputs ------------------------------------------------------------------------------
-
-    def state(self, names, positions: np.ndarray, stamp_ns: int, frame_id: str, rotations: np.ndarray,
-              root: np.ndarray) -> None:
-        self.state_out.publish(joint_state(names, positions, stamp(stamp_ns), frame_id))
-        if self.markers_out is not None:
-            self.markers_out.publish(self.node.markers(self.prefix, rotations, root, stamp(stamp_ns)))
-
-    def trajectory(self, names, chunk: Chunk, frame_id: str) -> None:
-        self.trajectory_out.publish(trajectory(names, chunk, frame_id))
-
-    def robot_state(self, names, positions: np.ndarray, stamp_ns: int, frame_id: str,
-                    base_position: np.ndarray, base_orientation: np.ndarray) -> None:
-        self.robot_outs[0].publish(joint_state(names, positions, stamp(stamp_ns), frame_id))
-        pose = PoseStamped()
-        pose.header.stamp, pose.header.frame_id = stamp(stamp_ns), frame_id or "world"
-        pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = base_position.tolist()
-        o = pose.pose.orientation
-        o.w, o.x, o.y, o.z = base_orientation.tolist()
-        self.robot_outs[2].publish(pose)
-
-    def robot_trajectory(self, names, chunk: Chunk, frame_id: str) -> None:
-        self.robot_outs[1].publish(trajectory(names, chunk, frame_id))
 
 
 class StylizerBase(Parameters):
@@ -178,9 +102,6 @@ class StylizerBase(Parameters):
         if self.settings["reference"]:
             self.references.staged[self.settings["reference"]] = self.references.read(self.settings["reference"])
         self._apply(self.settings)
-        skeleton = session.skeleton
-        self._bones = np.array([[skeleton.parents[j], j]
-                                for j in range(skeleton.pelvis + 1, skeleton.n_joints)]).ravel()
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._timer = self.create_timer(1.0, self._publish_diagnostics)
         self._reset_service = self.create_service(Trigger, "~/reset", self._reset)
@@ -255,21 +176,6 @@ class StylizerBase(Parameters):
         p.stream.frame(msg.name, msg.position, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
                        info["received_timestamp"], self.settings["frame_id"] or msg.header.frame_id)
 
-    def markers(self, prefix: str, rotations: np.ndarray, root: np.ndarray, stamp: Time) -> MarkerArray:
-        """The stylized skeleton's bones below the pelvis as one LINE_LIST, in REP-103 axes."""
-        skeleton = self.performers[0].stream.session.skeleton
-        offsets = skeleton.offsets.copy()
-        offsets[skeleton.pelvis] = root
-        ends = to_ros(forward_kinematics(skeleton, rotations, offsets)[1][self._bones])
-        marker = Marker(ns=prefix or NAME, id=0, type=Marker.LINE_LIST, action=Marker.ADD,
-                        points=[Point(x=x, y=y, z=z) for x, y, z in ends.tolist()])
-        marker.header.stamp = stamp
-        marker.header.frame_id = self.settings["frame_id"] or "world"
-        marker.pose.orientation.w = 1.0
-        marker.scale.x = 0.03  # line width, m
-        marker.color.r, marker.color.g, marker.color.b, marker.color.a = 0.95, 0.45, 0.1, 1.0
-        return MarkerArray(markers=[marker])
-
     # --- service and diagnostics --------------------------------------------------------------
 
     def _reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
@@ -316,18 +222,6 @@ class StylizerBase(Parameters):
             destroy(thing)
         self.performers = []
         self._pending.clear()
-
-
-def trajectory(names, chunk: Chunk, frame_id: str) -> JointTrajectory:
-    """One JointTrajectory; its header.stamp stays zero ("start on receipt" for
-    JointTrajectoryController: the frames are already past)."""
-    msg = JointTrajectory(joint_names=list(names))
-    msg.header.frame_id = frame_id
-    for offset, positions, velocities in zip(chunk.times_ns, chunk.positions, chunk.velocities):
-        msg.points.append(JointTrajectoryPoint(
-            positions=positions.tolist(), velocities=[] if velocities is None else velocities.tolist(),
-            time_from_start=Duration(sec=offset // 1_000_000_000, nanosec=offset % 1_000_000_000)))
-    return msg
 
 
 class Stylizer(StylizerBase, PlayerNode):
