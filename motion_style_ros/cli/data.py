@@ -1,7 +1,9 @@
-"""``motion-style data``: index the motion datasets, build the Bandai cache, check or rewrite the split.
+"""``motion-style data``: index the motion datasets or a user's labelled BVH folder, build the cache,
+check or rewrite the split.
 
 Datasets are read from ``$MOTION_STYLE_DATASETS`` (default ``~/.cache/motion-datasets``, where
-``../shared/datasets/unpack.sh`` puts them); the cache goes to ``$MOTION_STYLE_CACHE`` (default
+``../shared/datasets/unpack.sh`` puts them); a user's folder from its path (``--dataset PATH``, see
+:mod:`motion_style_ros.io.user_data`); the cache goes to ``$MOTION_STYLE_CACHE`` (default
 ``~/.cache/motion_style_ros``). Skipped files are reported as one warning line each on stderr.
 """
 
@@ -17,12 +19,17 @@ def add_parser(subparsers):
     actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     index = actions.add_parser("index", help="count clips per content, style and split",
                                description="Index a dataset and print its clip counts.")
-    index.add_argument("--dataset", choices=DATASETS, action="append",
-                       help="dataset to index (repeatable; default: all)")
-    build = actions.add_parser("cache", help="build or refresh the Bandai cache, with timings",
-                               description="Parse the Bandai sets into the cache where it is "
-                                           "missing or stale, then time a load from the cache.")
+    index.add_argument("--dataset", type=_dataset, action="append", metavar="NAME|PATH",
+                       help=f"dataset to index: {', '.join(DATASETS)}, or the path of a labelled BVH "
+                            "folder (its split is written beside it on first use; repeatable; "
+                            "default: the four named)")
+    build = actions.add_parser("cache", help="build or refresh the Bandai or a folder's cache, with timings",
+                               description="Parse the Bandai sets (or a labelled BVH folder) into the "
+                                           "cache where it is missing or stale, then time a load "
+                                           "from the cache.")
     build.add_argument("--rebuild", action="store_true", help="parse everything again")
+    build.add_argument("--dataset", type=_folder, default=None, metavar="PATH",
+                       help="a labelled BVH folder instead of the Bandai sets")
     split = actions.add_parser(
         "split", help="check or regenerate the committed Bandai split",
         description="Compare the committed bandai_split.csv with the split rule applied to the "
@@ -42,6 +49,20 @@ def add_parser(subparsers):
     mode.add_argument("--check", action="store_true", help="exit 1 if the file differs")
     mode.add_argument("--write", action="store_true", help="rewrite the file from the datasets")
     p.set_defaults(func=run)
+
+
+def _dataset(value: str) -> str:
+    """A dataset name, or the path of an existing folder (argparse type: a bad one is one line)."""
+    return value if value in DATASETS else _folder(value)
+
+
+def _folder(value: str) -> str:
+    import argparse
+    from pathlib import Path
+
+    if not Path(value).is_dir():
+        raise argparse.ArgumentTypeError(f"{value}: not {' or '.join(DATASETS)}, nor a folder")
+    return value
 
 
 def run(args) -> int:
@@ -71,7 +92,7 @@ def _index(args) -> int:
 
     from motion_style_ros.io import datasets as ds
 
-    root = ds.datasets_root()
+    root = ds.datasets_root() if set(args.dataset or DATASETS) & set(DATASETS) else None
     indexers = {
         "bandai-1": lambda: ds.index_bandai(root, (1,)),
         "bandai-2": lambda: ds.index_bandai(root, (2,)),
@@ -79,9 +100,12 @@ def _index(args) -> int:
         "xia": lambda: ds.index_xia(root),
     }
     for i, name in enumerate(args.dataset or DATASETS):
-        infos = indexers[name]()
+        if name in indexers:
+            infos, where = indexers[name](), root
+        else:
+            infos, where = _user_folder(name).infos, name
         splits = [s for s in ds.SPLITS if any(c.split == s for c in infos)]
-        print(("\n" if i else "") + f"{name}: {len(infos)} clips under {root}")
+        print(("\n" if i else "") + f"{name}: {len(infos)} clips under {where}")
         totals = Counter(c.split for c in infos)
         for field in ("content", "style"):
             counts = Counter((getattr(c, field), c.split) for c in infos)
@@ -90,6 +114,19 @@ def _index(args) -> int:
             _print_table([field, *splits, "total"], rows)
         _print_table(["all clips", *splits, "total"], [["", *(totals[s] for s in splits), len(infos)]])
     return 0
+
+
+def _user_folder(path: str, rebuild: bool = False):
+    """A labelled folder through its cache; prints what was skipped and the styles too small to train."""
+    from motion_style_ros.io import user_data
+
+    folder = user_data.load_folder(path, rebuild=rebuild)
+    print(f"{path}: {len(folder.infos)} takes usable, {len(folder.problems)} file(s) skipped; "
+          f"split in {user_data.SPLIT} beside them")
+    for style, n in folder.too_few().items():
+        print(f"{path}: style {style!r} has {n} take(s); training needs at least {user_data.MIN_TAKES} "
+              "(one each for train, val and test): add takes or leave it out with --exclude-styles")
+    return folder
 
 
 def _print_table(header, rows):
@@ -106,6 +143,14 @@ def _cache(args) -> int:
     from motion_style_ros.io import cache
     from motion_style_ros.io import datasets as ds
 
+    if args.dataset:
+        start = time.perf_counter()
+        folder = _user_folder(args.dataset, rebuild=args.rebuild)
+        state = "up to date" if folder.build_seconds is None else f"parsed in {folder.build_seconds:.1f} s"
+        frames = sum(m.n_frames for m in folder.motions)
+        print(f"{args.dataset}: {state} ({cache.cache_dir()}); {len(folder.motions)} takes, {frames:,} "
+              f"frames at 30 fps in {time.perf_counter() - start:.2f} s")
+        return 0
     for name, seconds in ds.build_cache(rebuild=args.rebuild).items():
         state = "up to date" if seconds is None else f"parsed in {seconds:.1f} s"
         print(f"{name}: {state} ({cache.cache_dir()})")

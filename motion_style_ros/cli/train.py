@@ -1,11 +1,15 @@
-"""``motion-style train``: train the models this package ships (needs torch: ``pip install '.[train]'``)."""
+"""``motion-style train``: train the models this package ships, on the Bandai data or a user's labelled
+BVH folder (``--data``), on any device, in one process or several under ``torchrun`` (needs torch:
+``pip install '.[train]'``; see docs/training.md)."""
 
 
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "train", help="train models (needs torch)",
-        description="Train a model on the Bandai Namco data and write it, with its model card, "
-                    "to models/. Stopped runs resume from ~/.cache/motion_style_ros/checkpoints/.",
+        description="Train a model on the Bandai Namco data (or a labelled BVH folder: --data) and "
+                    "write it, with its model card, to models/ (or --out). Stopped runs resume from "
+                    "~/.cache/motion_style_ros/checkpoints/. The stylizers also train data-parallel "
+                    "under torchrun (see docs/training.md).",
     )
     targets = p.add_subparsers(dest="target", metavar="TARGET", required=True)
     judges = targets.add_parser(
@@ -26,6 +30,7 @@ def add_parser(subparsers):
                         help="torch CPU threads (default: 2)")
     judges.add_argument("--out", default=None,
                         help="folder for the ONNX files and cards (default: the shipped models/)")
+    _run_flags(judges)
     judges.set_defaults(func=run_judges)
     recurrent = targets.add_parser(
         "recurrent", help="the Style-ERD online stylizer (models/style_erd.onnx)",
@@ -50,6 +55,7 @@ def add_parser(subparsers):
                                 "(without it, an earlier run's checkpoint is discarded)")
     recurrent.add_argument("--out", default=None,
                            help="folder for style_erd.onnx and its card (default: the shipped models/)")
+    _run_flags(recurrent)
     recurrent.set_defaults(func=run_recurrent)
     stgcn = targets.add_parser(
         "stgcn", help="the windowed ST-GCN stylizer (models/stgcn*.onnx)",
@@ -72,6 +78,7 @@ def add_parser(subparsers):
                             "(without it, an earlier run's checkpoint is discarded)")
     stgcn.add_argument("--out", default=None,
                        help="folder for stgcn*.onnx and the card (default: the shipped models/)")
+    _run_flags(stgcn)
     stgcn.add_argument("--init-from", type=int, default=None, metavar="SEED",
                        help="a new run continues this seed's checkpoint (weights, optimisers, "
                             "iterations and time) under this run's settings")
@@ -85,7 +92,32 @@ def add_parser(subparsers):
     stgcn.set_defaults(func=run_stgcn)
 
 
-_DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": ""}
+_DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal"}
+
+
+def _run_flags(parser) -> None:
+    """What every trainer takes: a user's data and its licence, the device."""
+    parser.add_argument("--data", default=None, metavar="PATH",
+                        help="train on a labelled BVH folder instead of the Bandai data (style folders "
+                             "or labels.csv; see docs/training.md); needs --out")
+    parser.add_argument("--licence", default=None, metavar="TEXT",
+                        help="with --data: the licence the model card states (default: \"as the user's data\")")
+    parser.add_argument("--device", default=None, metavar="cpu|cuda|mps",
+                        help="where to train (default: the best available)")
+
+
+def _output(args):
+    """The model folder: --out, else the shipped models/ (not for a model of the user's own data)."""
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.onnx_model import models_dir
+
+    if args.data and not args.out:
+        raise MotionStyleError("--data needs --out: a model of your own data would replace the shipped one")
+    if args.licence and not args.data:
+        raise MotionStyleError("--licence states the licence of a model of your own data: give --data")
+    return Path(args.out) if args.out else models_dir()
 
 
 def _data_flags(parser) -> None:
@@ -101,6 +133,8 @@ def _data_flags(parser) -> None:
     parser.add_argument("--exclude-styles", default="", metavar="NAME,NAME",
                         help="leave these styles out, e.g. to enrol one later with 'motion-style style "
                              "add' (default: none)")
+    parser.add_argument("--neutral", default="normal", metavar="STYLE",
+                        help="the neutral style (of --data; default: normal)")
 
 
 def _data_fields(args) -> tuple[dict, str]:
@@ -111,15 +145,17 @@ def _data_fields(args) -> tuple[dict, str]:
         fields = {"datasets": tuple(int(n) for n in args.datasets.split(",")),
                   "speeds": tuple(float(v) for v in args.speeds.split(",") if v),
                   "balance": args.balance, "mirror": args.mirror,
-                  "exclude": tuple(n for n in args.exclude_styles.split(",") if n)}
+                  "exclude": tuple(n for n in args.exclude_styles.split(",") if n),
+                  "data": args.data or "", "neutral": args.neutral}
     except ValueError:
         raise MotionStyleError("--datasets takes set numbers (1,2) and --speeds numbers (0.8,1.25)") from None
     if not fields["datasets"] or not set(fields["datasets"]) <= {1, 2} or any(v <= 0 for v in fields["speeds"]):
         raise MotionStyleError("--datasets takes 1 and/or 2; --speeds positive numbers")
     given = {"datasets": args.datasets, "speeds": args.speeds, "balance": f"{args.balance:g}",
-             "exclude_styles": args.exclude_styles}
+             "exclude_styles": args.exclude_styles, "neutral": args.neutral}
     flags = "".join(f" --{k.replace('_', '-')} {v}" for k, v in given.items() if v != _DATA_DEFAULTS[k])
-    return fields, flags + (" --mirror" if args.mirror else "")
+    return fields, flags + (" --mirror" if args.mirror else "") + (f" --data {args.data} --out {args.out}"
+                                                                     if args.data else "")
 
 
 def _training(module: str):
@@ -137,25 +173,22 @@ def _training(module: str):
 
 
 def run_judges(args) -> int:
-    from pathlib import Path
-
     from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.runtime.onnx_model import models_dir
-
     from motion_style_ros.evaluation.judges import KINDS
 
     judges = _training("judges")
 
     if args.epochs is not None and args.epochs < 1:
         raise MotionStyleError(f"--epochs must be at least 1, got {args.epochs}")
-    out = Path(args.out) if args.out else models_dir()
+    out = _output(args)
     changes = {k: v for k, v in (("epochs", args.epochs), ("seed", args.seed)) if v is not None}
-    clips = judges.encode_clips()
+    changes["data"] = args.data or ""
+    clips = judges.encode_clips(folder=changes["data"])
     for panel in (1, 2) if args.panel == "both" else (int(args.panel),):
         for kind in KINDS if args.kind == "both" else (args.kind,):
             cfg = (judges.Config(kind=kind, **changes) if panel == 1
                    else judges.second_panel(kind, **changes))
-            card = judges.train(cfg, out, clips, threads=args.threads)
+            card = judges.train(cfg, out, clips, threads=args.threads, device=args.device, licence=args.licence)
             acc = card["accuracy"]
             print(f"{card['name']}: test accuracy {acc['test_clip']:.3f} per clip "
                   f"({acc['test_clips']} clips), {acc['test_window']:.3f} per "
@@ -165,23 +198,22 @@ def run_judges(args) -> int:
 
 
 def run_recurrent(args) -> int:
-    from pathlib import Path
-
     from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.runtime.onnx_model import models_dir
 
     recurrent = _training("recurrent")
     if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
-    out = Path(args.out) if args.out else models_dir()
+    out = _output(args)
     fields, recipe = _data_fields(args)
     cfg = recurrent.Config(seed=args.seed, w_foot=args.foot_weight, **fields)
     if args.foot_weight:
         recipe += f" --foot-weight {args.foot_weight:g}"
     command = f"motion-style train recurrent --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
         f" --iterations {args.iterations}" if args.iterations is not None else "")
-    card = recurrent.train(cfg, out, args.minutes, args.iterations,
-                           args.resume, threads=args.threads, command=command + " --resume")
+    card = recurrent.train(cfg, out, args.minutes, args.iterations, args.resume, threads=args.threads,
+                           command=command + " --resume", device=args.device, licence=args.licence)
+    if card is None:  # not rank 0 of a torchrun
+        return 0
     history = card["training"]["history"]
     val = history["val"][-1]
     print(f"style_erd: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
@@ -191,15 +223,12 @@ def run_recurrent(args) -> int:
 
 
 def run_stgcn(args) -> int:
-    from pathlib import Path
-
     from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.runtime.onnx_model import models_dir
 
     stgcn = _training("stgcn")
     if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
-    out = Path(args.out) if args.out else models_dir()
+    out = _output(args)
     fields, recipe = _data_fields(args)
     command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
         f" --iterations {args.iterations}" if args.iterations is not None else "") + (
@@ -209,7 +238,9 @@ def run_stgcn(args) -> int:
     changes = {"ds_cap": args.ds_cap, **({"w_ds": args.ds_weight} if args.ds_weight is not None else {})}
     card = stgcn.train(stgcn.Config(seed=args.seed, **fields, **changes), out, args.minutes,
                        args.iterations, args.resume, threads=args.threads, command=command + " --resume",
-                       init_from=args.init_from)
+                       init_from=args.init_from, device=args.device, licence=args.licence)
+    if card is None:  # not rank 0 of a torchrun
+        return 0
     history = card["training"]["history"]
     val = history["val"][-1]
     print(f"stgcn: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "

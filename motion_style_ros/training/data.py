@@ -1,8 +1,8 @@
-"""Training data for every trainer: Bandai takes as encoded feature clips with style and content
-indices, their augmentation (speeds, mirroring), windows drawn from them (of any style, or one of
+"""Training data for every trainer: Bandai takes (or a user's labelled BVH folder,
+:mod:`motion_style_ros.io.user_data`) as encoded feature clips with style and content indices, their augmentation (speeds, mirroring), windows drawn from them (of any style, or one of
 each style asked for) with the targets of a transfer, and the feature normalisation. Which takes
-and augmentations a run uses is its config's ``datasets``, ``speeds``, ``balance``, ``mirror`` and
-``exclude`` fields (:class:`DataConfig`, :func:`load_for`)."""
+and augmentations a run uses is its config's ``datasets`` (or ``data``), ``neutral``, ``speeds``,
+``balance``, ``mirror`` and ``exclude`` fields (:class:`DataConfig`, :func:`load_for`)."""
 
 from __future__ import annotations
 
@@ -18,8 +18,10 @@ from motion_style_ros.core.mirror import mirror as mirror_motion
 from motion_style_ros.core.resample import at_speed
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import BANDAI_FPS, index_bandai, load_bandai
+from motion_style_ros.io.user_data import MIN_TAKES, load_folder
 
 NEUTRAL = "normal"
+USER_LICENCE = "as the user's data"  # a model trained on a user's folder, unless they state its licence
 FPS = BANDAI_FPS  # the rate of every training take, so of every model trained on them
 
 
@@ -38,6 +40,8 @@ class DataConfig:
     balance: float = 0.0
     mirror: bool = False  # also every train take mirrored left-right (load_data)
     exclude: tuple[str, ...] = ()  # styles left out (to enrol them later through a style bank)
+    data: str = ""  # a user's labelled BVH folder instead of the Bandai sets ``datasets``
+    neutral: str = NEUTRAL  # the style of the neutral branch (and the card's neutral style)
 
 
 @dataclass
@@ -57,17 +61,29 @@ class Data:
 
 def load_data(datasets: tuple[int, ...] = (2,), progress: bool = True, root: Path | None = None,
               takes_per_cell: int | None = None, speeds: tuple[float, ...] = (),
-              balance: float = 0.0, mirror: bool = False, exclude: tuple[str, ...] = ()) -> Data:
-    """Encoded train and val takes with style and content indices (every style of the sets but
-    ``exclude``, labels from :func:`motion_style_ros.io.datasets.style_label`). Train takes are
+              balance: float = 0.0, mirror: bool = False, exclude: tuple[str, ...] = (),
+              folder: Path | str | None = None, neutral: str = NEUTRAL) -> Data:
+    """Encoded train and val takes with style and content indices (every style of the sets, or of
+    the user's ``folder``, but ``exclude``; Bandai labels from
+    :func:`motion_style_ros.io.datasets.style_label`); ``neutral`` must be among them. Train takes are
     added again at each of ``speeds`` and, with ``mirror``, mirrored left-right (at each speed too;
     a left content becomes its right mate). ``takes_per_cell`` keeps only the first takes of each
     split, style and content (tests)."""
-    indexed = [i for i in index_bandai(root, datasets=tuple(sorted(datasets))) if i.split in ("train", "val")]
+    if folder is None:
+        indexed = [i for i in index_bandai(root, datasets=tuple(sorted(datasets))) if i.split in ("train", "val")]
+    else:
+        user = load_folder(folder, progress)
+        short = {s: n for s, n in user.too_few().items() if s not in exclude}
+        if short:
+            raise MotionStyleError(
+                f"{folder}: too few takes in style(s) {', '.join(f'{s} ({n})' for s, n in short.items())}; "
+                f"each needs at least {MIN_TAKES} (train, val, test): add takes or --exclude-styles them")
+        motions = {i: m for i, m in zip(user.infos, user.motions) if i.split in ("train", "val")}
+        indexed = list(motions)
     unknown = sorted(set(exclude) - {i.style for i in indexed})
-    if unknown or NEUTRAL in exclude:
-        raise MotionStyleError(f"cannot leave out {', '.join(unknown) or NEUTRAL}: the styles to leave out "
-                               f"are among {', '.join(sorted({i.style for i in indexed} - {NEUTRAL}))}")
+    if unknown or neutral in exclude:
+        raise MotionStyleError(f"cannot leave out {', '.join(unknown) or neutral}: the styles to leave out "
+                               f"are among {', '.join(sorted({i.style for i in indexed} - {neutral}))}")
     infos = [i for i in indexed if i.style not in exclude]
     if takes_per_cell is not None:
         seen: dict[tuple[str, str, str], int] = {}
@@ -79,9 +95,10 @@ def load_data(datasets: tuple[int, ...] = (2,), progress: bool = True, root: Pat
         infos = kept
     styles = tuple(sorted({i.style for i in infos}))
     contents = tuple(sorted({i.content for i in infos}))
-    if NEUTRAL not in styles:
-        raise MotionStyleError(f"no '{NEUTRAL}' takes among the Bandai data: the neutral branch needs them")
-    loaded = load_bandai(infos, progress=progress)
+    if neutral not in styles:
+        raise MotionStyleError(f"no '{neutral}' takes among the data: the neutral branch needs them (the "
+                               f"styles are {', '.join(styles)}; --neutral names another)")
+    loaded = load_bandai(infos, progress=progress) if folder is None else [(i, motions[i]) for i in infos]
     encoded = []
     for info, m in tqdm(loaded, desc="features", disable=not progress):
         encoded.append((info, encode(m)))
@@ -144,22 +161,29 @@ def style_windows(clips: Clips, length: int, styles: np.ndarray, rng: np.random.
 
 def other_styles(style: torch.Tensor, n_styles: int, rng: np.random.Generator) -> torch.Tensor:
     """A random style index other than each row's own (the targets of a transfer)."""
-    return (style + torch.from_numpy(rng.integers(1, n_styles, len(style)))) % n_styles
+    return (style + torch.from_numpy(rng.integers(1, n_styles, len(style))).to(style.device)) % n_styles
 
 
 def load_for(cfg: DataConfig, progress: bool = True) -> Data:
     """:func:`load_data` with a trainer config's data fields."""
     return load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance, mirror=cfg.mirror,
-                     exclude=cfg.exclude)
+                     exclude=cfg.exclude, folder=cfg.data or None, neutral=cfg.neutral)
 
 
-def recipe(cfg: DataConfig) -> dict:
-    """The card's account of a config's data fields."""
+def recipe(cfg: DataConfig, licence: str | None = None) -> dict:
+    """The card's account of a config's data fields; for a user's folder, with the ``licence``
+    they give their model (the card's licence fields, :func:`motion_style_ros.training.export.licence_fields`)."""
     aug = [f"every train take also at speeds {list(cfg.speeds)}"] if cfg.speeds else []
     if cfg.mirror:
         aug.append("every train take (and speed copy) also mirrored left-right, left/right contents swapped")
     if cfg.balance:
         aug.append(f"windows weighted frames / style_frames ** {cfg.balance}")
+    if cfg.data:
+        return {"data": f"the user's labelled BVH folder {cfg.data}: 'train' takes (val takes for the val "
+                        "figures; test takes never seen; split in its motion_style_split.csv)",
+                "styles": "every style of the folder" + (f" but {', '.join(cfg.exclude)} (left out)"
+                                                          if cfg.exclude else "") + f"; neutral {cfg.neutral}",
+                "augmentation": "; ".join(aug) or "none", "licence": licence or USER_LICENCE}
     return {
         "data": f"Bandai Namco Research Motion Dataset(s) {', '.join(map(str, cfg.datasets))}: 'train' "
                 "takes (val takes for the val figures; test takes never seen)",

@@ -18,7 +18,8 @@ from motion_style_ros.runtime.contract import Contract, check_card
 from motion_style_ros.training.data import FPS
 
 OPSET = 17
-# Every model is trained on the Bandai Namco data, so its card carries the data's licence.
+# A model trained on the Bandai Namco data carries the data's licence (one trained on a user's
+# folder, the licence they give it: licence_fields).
 LICENCE = {
     "licence": "CC BY-NC 4.0 (inherited from the training data): non-commercial use only",
     "attribution": ('Kobayashi et al., "Motion Capture Dataset for Practical Use of AI-based Motion '
@@ -62,6 +63,15 @@ def run_onnx(path: Path, contract: Contract, *inputs: np.ndarray) -> list[np.nda
     return [outputs[name] for name in contract.outputs]
 
 
+def licence_fields(training: dict) -> dict:
+    """The card's licence and attribution: the user's for a model of their own data (the
+    ``licence`` of its training record, :func:`motion_style_ros.training.data.recipe`), else the
+    Bandai data's."""
+    if "licence" not in training:
+        return LICENCE
+    return {"licence": training["licence"], "attribution": f"trained on {training['data']}"}
+
+
 def data_fields(skeleton: str = "canonical") -> dict:
     """The card's account of what a model reads: rate, skeleton, feature version and layout."""
     return {"fps": FPS, "skeleton": skeleton, "feature_version": FEATURE_VERSION,
@@ -73,7 +83,7 @@ def stylizer_card(path: Path, kind: str, task: str, styles: tuple[str, ...], neu
     """A stylizer's model card (``models/<name>.json``) with the kind's own fields ``interface``
     (state, window, inputs and outputs...); ``metrics`` is filled later by eval/bench."""
     return {"name": path.stem, "kind": kind, "task": task, "styles": list(styles), "neutral_style": neutral,
-            **data_fields(), **interface, "architecture": architecture, "training": training, **LICENCE,
+            **data_fields(), **interface, "architecture": architecture, "training": training, **licence_fields(training),
             "metrics": {}}
 
 

@@ -1,4 +1,5 @@
-"""Training of the style and content judges on real Bandai takes (both sets), ONNX export, card.
+"""Training of the style and content judges on real Bandai takes (both sets) or a user's labelled
+BVH folder (:mod:`motion_style_ros.io.user_data`), ONNX export, card.
 
 The judges are instruments: they are trained on real recordings only, scored on the held-out test
 takes, and then shipped frozen in ``models/``. No stylizer may use them as a training loss. There
@@ -23,10 +24,12 @@ from tqdm import tqdm
 from motion_style_ros.core.features import encode, feature_layout
 from motion_style_ros.evaluation.judges import judge_file
 from motion_style_ros.io.datasets import ClipInfo, index_bandai, load_bandai
+from motion_style_ros.io.user_data import load_folder
 from motion_style_ros.models.judge import ARCHITECTURES, Judge
 from motion_style_ros.runtime.contract import JUDGE
-from motion_style_ros.training.data import FPS, normalisation
-from motion_style_ros.training.export import LICENCE, data_fields, export_graph, run_onnx, write_card
+from motion_style_ros.training import hardware
+from motion_style_ros.training.data import FPS, USER_LICENCE, normalisation
+from motion_style_ros.training.export import data_fields, export_graph, licence_fields, run_onnx, write_card
 from motion_style_ros.training.loop import CHECKPOINTS
 
 WINDOW, HOP = 60, 30  # window-level accuracy: 2 s windows every second
@@ -55,6 +58,7 @@ class Config:
     embedding: int = 64
     dropout: float = 0.2
     std_floor: float = 0.05
+    data: str = ""  # a user's labelled BVH folder instead of the Bandai sets
 
 
 def second_panel(kind: str, **changes) -> Config:
@@ -75,9 +79,14 @@ class Split:
     labels: np.ndarray  # (clips,) label indices
 
 
-def encode_clips(progress: bool = True) -> list[tuple[ClipInfo, np.ndarray]]:
-    """Every Bandai clip of both sets with its ``encode()`` features (every judge trains on them)."""
-    clips = load_bandai(index_bandai(), progress=progress)
+def encode_clips(progress: bool = True, folder: str = "") -> list[tuple[ClipInfo, np.ndarray]]:
+    """Every Bandai clip of both sets (or every take of a user's ``folder``) with its ``encode()``
+    features (every judge trains on them)."""
+    if folder:
+        user = load_folder(folder, progress)
+        clips = list(zip(user.infos, user.motions))
+    else:
+        clips = load_bandai(index_bandai(), progress=progress)
     return [(info, encode(m)) for info, m in tqdm(clips, desc="features", disable=not progress)]
 
 
@@ -100,7 +109,7 @@ def _crop(features: np.ndarray, start: int, length: int) -> np.ndarray:
     return np.pad(crop, ((missing // 2, missing - missing // 2), (0, 0)), mode="edge")
 
 
-def _batches(split: Split, cfg: Config, rng: np.random.Generator):
+def _batches(split: Split, cfg: Config, rng: np.random.Generator, where: torch.device):
     """Random crops of class-balanced random train clips, one crop length per batch."""
     counts = np.bincount(split.labels)
     weights = 1.0 / counts[split.labels]
@@ -110,15 +119,16 @@ def _batches(split: Split, cfg: Config, rng: np.random.Generator):
         idx = rng.choice(len(split.labels), size=cfg.batch, p=weights)
         starts = rng.integers(0, [max(len(split.features[i]) - length, 0) + 1 for i in idx])
         crops = [_crop(split.features[i], int(s), length) for i, s in zip(idx, starts)]
-        yield torch.from_numpy(np.stack(crops)), torch.from_numpy(split.labels[idx])
+        yield torch.from_numpy(np.stack(crops)).to(where), torch.from_numpy(split.labels[idx]).to(where)
 
 
 @torch.no_grad()
 def _predict(model: Judge, clips: list[np.ndarray]) -> np.ndarray:
     """Class probabilities ``(N, classes)``, each clip classified whole."""
     model.eval()
+    where = next(model.parameters()).device
     return np.concatenate(
-        [torch.softmax(model(torch.from_numpy(f)[None])[0], -1).numpy() for f in clips]
+        [torch.softmax(model(torch.from_numpy(f)[None].to(where))[0].float(), -1).cpu().numpy() for f in clips]
     )
 
 
@@ -175,19 +185,25 @@ def train(
     checkpoints: Path = CHECKPOINTS,
     threads: int = 2,
     progress: bool = True,
+    device: str | None = None,
+    licence: str | None = None,
 ) -> dict:
-    """Train one judge (resuming from its checkpoint), export it to ``out_dir``; returns its card.
+    """Train one judge (resuming from its checkpoint, on any device) on ``device`` (default: the
+    best there is), export it to ``out_dir``; returns its card. One process: a judge trains in
+    minutes.
 
     ``clips`` are :func:`encode_clips`' output, loaded here when not given.
     """
     torch.set_num_threads(threads)
+    where = hardware.device(device)
     started = time.perf_counter()
-    labels, splits = make_splits(cfg.kind, clips if clips is not None else encode_clips(progress))
+    clips = clips if clips is not None else encode_clips(progress, cfg.data)
+    labels, splits = make_splits(cfg.kind, clips)
     train_split = splits["train"]
     mean, std = normalisation(train_split.features, cfg.std_floor)
     torch.manual_seed(cfg.seed)  # initial weights
     model = ARCHITECTURES[cfg.architecture](mean, std, len(labels), cfg.width, cfg.embedding,
-                                            cfg.dropout, input_columns(cfg.inputs))
+                                            cfg.dropout, input_columns(cfg.inputs)).to(where)
     optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
 
     checkpoints.mkdir(parents=True, exist_ok=True)
@@ -195,8 +211,8 @@ def train(
     state = {"epoch": -1, "best": None, "history": [], "train_seconds": 0.0}
     earlier = 0.0
     if ckpt_path.exists():
-        saved = torch.load(ckpt_path, weights_only=False)
-        if saved["config"] == {**asdict(cfg), "epochs": None}:
+        saved = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+        if {"data": "", **saved["config"]} == {**asdict(cfg), "epochs": None}:
             model.load_state_dict(saved["model"])
             optimizer.load_state_dict(saved["optimizer"])
             state = saved["state"]
@@ -213,14 +229,15 @@ def train(
         model.train()
         losses = []
         bar = tqdm(
-            _batches(train_split, cfg, rng),
+            _batches(train_split, cfg, rng, where),
             total=cfg.crops_per_epoch // cfg.batch,
             desc=f"{cfg.kind} epoch {epoch + 1}/{cfg.epochs}",
             disable=not progress,
         )
         for x, y in bar:
-            logits, _ = model(x)
-            loss = F.cross_entropy(logits, y, label_smoothing=cfg.label_smoothing)
+            with hardware.autocast(where):
+                logits, _ = model(x)
+            loss = F.cross_entropy(logits.float(), y, label_smoothing=cfg.label_smoothing)
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -253,10 +270,11 @@ def train(
         tmp.replace(ckpt_path)
 
     model.load_state_dict(state["best"]["model"])
+    model.cpu()
     out_dir.mkdir(parents=True, exist_ok=True)
     onnx_path = out_dir / judge_file(cfg.kind, cfg.panel)
     export_onnx(model, onnx_path)
-    card = _card(cfg, model, labels, splits, state, onnx_path)
+    card = _card(cfg, model, labels, splits, state, onnx_path, licence)
     card["onnx_torch_max_abs_diff"], card["parity_probe_clips"] = parity(model, onnx_path, splits["test"].features[:4])
     card["training"]["wall_time_s"] = round(earlier + time.perf_counter() - started, 1)
     write_card(onnx_path, card)
@@ -264,7 +282,8 @@ def train(
 
 
 def _card(
-    cfg: Config, model: Judge, labels: list[str], splits: dict[str, Split], state: dict, onnx_path: Path
+    cfg: Config, model: Judge, labels: list[str], splits: dict[str, Split], state: dict, onnx_path: Path,
+    licence: str | None = None,
 ) -> dict:
     test = splits["test"]
     probs = _predict(model, test.features)
@@ -276,6 +295,15 @@ def _card(
     layout = feature_layout()
     best = state["best"]
     crop_s = [round(n / FPS, 1) for n in cfg.crop_frames]
+    data = (f"the user's labelled BVH folder {cfg.data}, 'train' takes" if cfg.data
+            else "Bandai Namco Research Motion Datasets 1 and 2, 'train' takes")
+    training = {
+        "data": data + "; " + (f"selection on {'' if cfg.data else 'dataset-2 '}'val' takes" if cfg.select
+                               else "the last epoch kept "
+                               "(val takes never looked at)")
+                + "; test on held-out 'test' takes (split by take, never by window)",
+        **({"licence": licence or USER_LICENCE} if cfg.data else {}),
+    }
     return {
         "name": onnx_path.stem,
         "task": f"classify the {cfg.kind} of a motion clip (an independent evaluation judge)",
@@ -312,14 +340,12 @@ def _card(
         "normalisation": "per-feature mean and std of all train frames (std floored at "
                          f"{cfg.std_floor}), stored in the graph as constants",
         "training": {
-            "data": "Bandai Namco Research Motion Datasets 1 and 2, 'train' takes; "
-                    + ("selection on dataset-2 'val' takes" if cfg.select else "the last epoch kept "
-                       "(val takes never looked at)")
-                    + "; test on held-out 'test' takes (split by take, never by window)",
+            **training,
             "labels": "styles from motion_style_ros.io.datasets.style_label (dataset-1 styles "
                       "named like a dataset-2 style carry the suffix -d1)",
             "clips": {name: len(s.labels) for name, s in splits.items()},
-            "command": f"motion-style train judges --panel {cfg.panel} --kind {cfg.kind}",
+            "command": f"motion-style train judges --panel {cfg.panel} --kind {cfg.kind}"
+                       + (f" --data {cfg.data}" if cfg.data else ""),
             "config": asdict(cfg),
             "optimizer": "Adam, cross-entropy with label smoothing, class-balanced sampling of "
                          "random crops",
@@ -342,5 +368,5 @@ def _card(
             "labels": labels,
             "matrix": confusion.tolist(),
         },
-        **LICENCE,
+        **licence_fields(training),
     }

@@ -1,7 +1,14 @@
 """The resumable training loop every stylizer trainer runs: a time and iteration budget counted
 over all resumed runs, a loss log (``losses.jsonl``), validation, and checkpoints that a later run
 continues exactly (every iteration draws its data from a generator seeded by the seed and the
-iteration, so a resumed run repeats what an uninterrupted one would have done)."""
+iteration, so a resumed run repeats what an uninterrupted one would have done).
+
+On any device (checkpoints are loaded onto the CPU first, so a run resumes on another device), and
+data-parallel under ``torchrun``: every process draws the same global batch (the config's
+``batch``) and trains on its share (:meth:`ResumableTrainer.shard`) through
+``DistributedDataParallel`` (:meth:`ResumableTrainer.synced`), so N processes follow one process
+with the same config; the logged losses are the mean over processes, and only rank 0 logs, shows
+progress and writes checkpoints, which resume in one process."""
 
 from __future__ import annotations
 
@@ -14,10 +21,13 @@ from pathlib import Path
 
 import numpy as np
 import torch
+import torch.distributed as dist
 from torch import nn
+from torch.nn.parallel import DistributedDataParallel
 from tqdm import tqdm
 
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.training import hardware
 from motion_style_ros.training.data import Data, DataConfig
 
 CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
@@ -42,10 +52,27 @@ class ResumableTrainer(ABC):
     SHOWN: tuple[str, ...]  # the logged losses the progress bar shows
     PARTS: tuple[str, ...]  # the attributes (modules, optimisers) a checkpoint holds besides the state
 
-    def __init__(self, cfg: DataConfig, data: Data, checkpoints: Path, progress: bool) -> None:
-        self.cfg, self.data, self.progress = cfg, data, progress
+    def __init__(self, cfg: DataConfig, data: Data, checkpoints: Path, progress: bool,
+                 device: torch.device | None = None) -> None:
+        self.rank, self.world = hardware.rank(), hardware.world()
+        if cfg.batch % self.world:  # every config here has a batch
+            raise MotionStyleError(f"batch {cfg.batch} does not split over {self.world} processes")
+        self.cfg, self.data, self.progress = cfg, data, progress and self.rank == 0
+        self.device = device or torch.device("cpu")
         self.dir = self.folder(checkpoints, cfg.seed)
         self.state = {"iteration": 0, "train_seconds": 0.0, "val": []}
+
+    def shard(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """This process's share of a global batch, on its device."""
+        return tuple(t.chunk(self.world)[self.rank].to(self.device) for t in tensors)
+
+    def synced(self, module: nn.Module, unused: bool = False) -> nn.Module:
+        """``module`` whose gradients are averaged over the processes (itself in one process);
+        ``unused``: some of its parameters may get no gradient in a step."""
+        if self.world == 1:
+            return module
+        ids = [self.device] if self.device.type == "cuda" else None
+        return DistributedDataParallel(module, device_ids=ids, find_unused_parameters=unused)
 
     @abstractmethod
     def step(self, iteration: int) -> dict[str, float]:
@@ -73,7 +100,15 @@ class ResumableTrainer(ABC):
         return {"config": asdict(self.cfg), "styles": list(self.data.styles),
                 "contents": list(self.data.contents)}
 
+    def _read(self, checkpoint: Path) -> dict:
+        """A checkpoint on the CPU; a config from before a field existed reads as its default."""
+        saved = torch.load(checkpoint, map_location="cpu", weights_only=False)
+        saved["config"] = {**asdict(type(self.cfg)()), **saved["config"]}
+        return saved
+
     def save(self) -> None:
+        if self.rank:
+            return
         self.dir.mkdir(parents=True, exist_ok=True)
         tmp = self.checkpoint.with_suffix(".tmp")
         torch.save({**self.settings(), **{name: getattr(self, name).state_dict() for name in self.PARTS},
@@ -88,7 +123,7 @@ class ResumableTrainer(ABC):
         """Continue from the checkpoint if there is one; log lines written after it are dropped."""
         if not self.checkpoint.exists():
             return False
-        saved = torch.load(self.checkpoint, weights_only=False)
+        saved = self._read(self.checkpoint)
         if {k: saved[k] for k in ("config", "styles", "contents")} != self.settings():
             raise MotionStyleError(
                 f"{self.checkpoint} was made with other settings or data; train without --resume "
@@ -96,7 +131,7 @@ class ResumableTrainer(ABC):
             )
         self._load_parts(saved)
         self.state = saved["state"]
-        if self.log.exists():
+        if self.log.exists() and not self.rank:
             kept = [line for line in self.log.read_text().splitlines()
                     if json.loads(line)["iteration"] <= self.state["iteration"]]
             self.log.write_text("".join(line + "\n" for line in kept))
@@ -107,7 +142,7 @@ class ResumableTrainer(ABC):
         run's other settings; the config fields ``networks`` and the data must be the same."""
         if not checkpoint.exists():
             raise MotionStyleError(f"{checkpoint}: no checkpoint to start from")
-        saved = torch.load(checkpoint, weights_only=False)
+        saved = self._read(checkpoint)
         mine = self.settings()
         if ([saved["config"].get(k) for k in networks] != [mine["config"][k] for k in networks]
                 or (saved["styles"], saved["contents"]) != (mine["styles"], mine["contents"])):
@@ -119,13 +154,14 @@ class ResumableTrainer(ABC):
             "train_seconds": round(saved["state"]["train_seconds"], 1), "config": saved["config"]}}
 
     @classmethod
-    def started(cls, cfg: DataConfig, data: Data, checkpoints: Path, progress: bool, resume: bool
-                ) -> ResumableTrainer:
+    def started(cls, cfg: DataConfig, data: Data, checkpoints: Path, progress: bool, resume: bool,
+                device: torch.device | None = None) -> ResumableTrainer:
         """A trainer continuing from its checkpoint (``resume`` and there is one) or afresh."""
-        trainer = cls(cfg, data, checkpoints, progress)
+        trainer = cls(cfg, data, checkpoints, progress, device)
         if resume and trainer.resume():
-            print(f"resuming {trainer.checkpoint} at iteration {trainer.state['iteration']}")
-        elif not resume:
+            if not trainer.rank:
+                print(f"resuming {trainer.checkpoint} at iteration {trainer.state['iteration']}")
+        elif not resume and not trainer.rank:
             trainer.fresh_start()
         return trainer
 
@@ -136,13 +172,19 @@ class ResumableTrainer(ABC):
             path.unlink(missing_ok=True)
 
     def _append_log(self, entry: dict) -> None:
+        if self.rank:
+            return
         self.dir.mkdir(parents=True, exist_ok=True)
         with open(self.log, "a") as f:
             f.write(json.dumps(entry) + "\n")
 
     def _log_losses(self, recent: list[dict[str, float]], seconds: float) -> dict[str, float]:
         """Log the mean of each loss term over the ``recent`` steps; returns the means."""
-        means = {k: round(float(np.mean([r[k] for r in recent])), 5) for k in recent[0]}
+        means = torch.tensor([np.mean([r[k] for r in recent]) for k in recent[0]], dtype=torch.float64)
+        if self.world > 1:  # the mean over processes: the loss of the global batch
+            dist.all_reduce(means)
+            means /= self.world
+        means = {k: round(float(v), 5) for k, v in zip(recent[0], means)}
         self._append_log({"iteration": self.state["iteration"], "seconds": round(seconds, 1), **means})
         return means
 
@@ -161,10 +203,16 @@ class ResumableTrainer(ABC):
         def spent() -> float:
             return state["train_seconds"] + time.perf_counter() - started
 
+        def out_of_time() -> bool:  # rank 0's clock decides for every process
+            late = torch.tensor(float(spent() >= budget_s))
+            if self.world > 1:
+                dist.broadcast(late, 0)
+            return bool(late)
+
         last_save, recent = time.perf_counter(), []
         bar = tqdm(total=iterations, initial=state["iteration"], desc=self.LABEL, unit="it",
                    disable=not self.progress, mininterval=PROGRESS_INTERVAL)
-        while state["iteration"] < last_iteration and spent() < budget_s:
+        while state["iteration"] < last_iteration and not out_of_time():
             self.model.train()
             recent.append(self.step(state["iteration"]))
             state["iteration"] += 1

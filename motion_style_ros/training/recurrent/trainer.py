@@ -20,12 +20,13 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
+from torch import nn
 from tqdm import tqdm
 
 from motion_style_ros.core.features import feature_layout
 from motion_style_ros.models.style_erd import ContentNet, ErdConfig, FTAttDiscriminator, StyleERD
+from motion_style_ros.training import hardware
 from motion_style_ros.training.data import (
-    NEUTRAL,
     Data,
     DataConfig,
     load_for,
@@ -97,7 +98,7 @@ class Config(DataConfig):
         return self.crops * self.crop_frames + 1
 
     def erd(self, styles: tuple[str, ...]) -> ErdConfig:
-        return ErdConfig(styles, NEUTRAL, encoder=self.encoder, latent=self.latent,
+        return ErdConfig(styles, self.neutral, encoder=self.encoder, latent=self.latent,
                          neutral_layers=self.neutral_layers, style_layers=self.style_layers,
                          decoder=self.decoder)
 
@@ -123,36 +124,38 @@ def _onehot(index: torch.Tensor, n: int, repeat: int = 1) -> torch.Tensor:
 
 
 def _content_settings(cfg: Config) -> dict:
-    names = ("seed", "datasets", "crops", "crop_frames", "std_floor", "content_widths",
+    names = ("seed", "datasets", "data", "crops", "crop_frames", "std_floor", "content_widths",
              "content_iterations", "content_batch", "content_lr")
     return {k: getattr(cfg, k) for k in names}
 
 
-def content_network(cfg: Config, data: Data, losses: Losses, path: Path, progress: bool = True
-                    ) -> tuple[ContentNet, dict]:
+def content_network(cfg: Config, data: Data, losses: Losses, path: Path, progress: bool = True,
+                    device: torch.device | None = None) -> tuple[ContentNet, dict]:
     """The frozen content network of the perceptual loss: loaded from ``path``, or trained on the
     train takes' content labels and saved there. Returns it and its val window accuracy."""
     channels = losses.rot_cols.stop - losses.rot_cols.start + losses.pv_cols.stop - losses.pv_cols.start
     torch.manual_seed(cfg.seed)
-    net = ContentNet(channels, len(data.contents), cfg.content_widths)
+    device = device or torch.device("cpu")
+    net = ContentNet(channels, len(data.contents), cfg.content_widths).to(device)
     if path.exists():
-        saved = torch.load(path, weights_only=False)
-        if saved["settings"] == _content_settings(cfg) and saved["contents"] == list(data.contents):
+        saved = torch.load(path, map_location="cpu", weights_only=False)
+        if {"data": "", **saved["settings"]} == _content_settings(cfg) and saved["contents"] == list(data.contents):
             net.load_state_dict(saved["model"])
             return net.requires_grad_(False).eval(), saved["info"]
     optimizer = torch.optim.Adam(net.parameters(), lr=cfg.content_lr)
     bar = tqdm(range(cfg.content_iterations), desc="content network", disable=not progress,
                mininterval=PROGRESS_INTERVAL)
     for it in bar:
-        x, _, content = windows(data.splits["train"], cfg.window, cfg.content_batch,
-                                np.random.default_rng([cfg.seed, 1, it]))
+        x, _, content = (t.to(device) for t in windows(data.splits["train"], cfg.window, cfg.content_batch,
+                                                        np.random.default_rng([cfg.seed, 1, it])))
         loss = F.cross_entropy(net(losses.views(_frames(x))["content"])[0], content)
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
         bar.set_postfix(loss=f"{loss.item():.3f}", refresh=False)
     net.requires_grad_(False).eval()
-    x, _, content = windows(data.splits["val"], cfg.window, 256, np.random.default_rng([cfg.seed, 2]))
+    x, _, content = (t.to(device) for t in windows(data.splits["val"], cfg.window, 256,
+                                                    np.random.default_rng([cfg.seed, 2])))
     with torch.no_grad():
         logits, _ = net(losses.views(_frames(x))["content"])
     info = {"val_window_accuracy": round(float((logits.argmax(-1) == content).float().mean()), 4),
@@ -161,6 +164,17 @@ def content_network(cfg: Config, data: Data, losses: Losses, path: Path, progres
     torch.save({"settings": _content_settings(cfg), "contents": list(data.contents),
                 "model": net.state_dict(), "info": info}, path)
     return net, info
+
+
+class _Stylize(nn.Module):
+    """The generator's training path as a module's forward (what DistributedDataParallel wraps)."""
+
+    def __init__(self, model: StyleERD) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, features: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        return self.model.stylize(features, target)
 
 
 class Trainer(ResumableTrainer):
@@ -174,22 +188,26 @@ class Trainer(ResumableTrainer):
     PARTS = ("model", "ema", "dis", "opt_g", "opt_d")
 
     def __init__(self, cfg: Config, data: Data, checkpoints: Path = CHECKPOINTS,
-                 progress: bool = True) -> None:
-        super().__init__(cfg, data, checkpoints, progress)
+                 progress: bool = True, device: torch.device | None = None) -> None:
+        super().__init__(cfg, data, checkpoints, progress, device)
         mean, std = normalisation(data.splits["train"].features, cfg.std_floor)
-        self.losses = Losses(cfg, mean, std)
-        self.content, self.content_info = content_network(cfg, data, self.losses,
-                                                          self.dir / "content_net.pt", progress)
+        self.losses = Losses(cfg, mean, std).to(self.device)
+        with hardware.rank_zero_first():  # the others read the network rank 0 trained and saved
+            self.content, self.content_info = content_network(cfg, data, self.losses, self.dir / "content_net.pt",
+                                                              self.progress, self.device)
         torch.manual_seed(cfg.seed)
-        self.model = StyleERD(cfg.erd(data.styles), mean, std, mean[:_FRAME], std[:_FRAME])
+        self.model = StyleERD(cfg.erd(data.styles), mean, std, mean[:_FRAME], std[:_FRAME]).to(self.device)
         self.ema = copy.deepcopy(self.model).requires_grad_(False)
         self.dis = FTAttDiscriminator(self.losses.pv_cols.stop - self.losses.pv_cols.start,
                                       len(data.styles), len(data.contents), cfg.crop_frames,
-                                      cfg.dis_widths, cfg.dis_features)
+                                      cfg.dis_widths, cfg.dis_features).to(self.device)
+        # each branch runs only on the windows that target its style, so some may get no gradient
+        self.stylize = self.synced(_Stylize(self.model), unused=True)
+        self.dis_synced = self.synced(self.dis)
         self.opt_g = torch.optim.Adam(self.model.parameters(), lr=cfg.lr_gen)
         self.opt_d = torch.optim.Adam(self.dis.parameters(), lr=cfg.lr_dis)
         val_rng = np.random.default_rng([cfg.seed, 3])
-        self.val_windows = windows(data.splits["val"], cfg.window, 128, val_rng)
+        self.val_windows = tuple(t.to(self.device) for t in windows(data.splits["val"], cfg.window, 128, val_rng))
         self.val_targets = other_styles(self.val_windows[1], len(data.styles), val_rng)
 
     def crops(self, pv: torch.Tensor) -> torch.Tensor:
@@ -201,10 +219,11 @@ class Trainer(ResumableTrainer):
         cfg, n_styles = self.cfg, len(self.data.styles)
         rng = np.random.default_rng([cfg.seed, 0, iteration])
         x, style, content = windows(self.data.splits["train"], cfg.window, cfg.batch, rng)
-        other = other_styles(style, n_styles, rng)
-        out = self.losses.views(self.model.stylize(torch.cat([x, x]), torch.cat([style, other])))
-        rec = {k: v[: cfg.batch] for k, v in out.items()}
-        fake = {k: v[cfg.batch :] for k, v in out.items()}
+        x, style, content, other = self.shard(x, style, content, other_styles(style, n_styles, rng))
+        batch = len(x)
+        out = self.losses.views(self.stylize(torch.cat([x, x]), torch.cat([style, other])))
+        rec = {k: v[:batch] for k, v in out.items()}
+        fake = {k: v[batch:] for k, v in out.items()}
         real = self.losses.views(_frames(x))
         labels_real = (_onehot(style, n_styles, cfg.crops), _onehot(content, len(self.data.contents), cfg.crops))
         labels_fake = (_onehot(other, n_styles, cfg.crops), labels_real[1])
@@ -213,10 +232,10 @@ class Trainer(ResumableTrainer):
         # critic: real -> 1, transferred -> -1, gradient penalty on real crops (LSGAN, paper eq. 5, 6)
         self.dis.requires_grad_(True)
         real_pv = self.crops(real["pv"]).requires_grad_(True)
-        d_real = self.dis(real_pv, *labels_real)
+        d_real = self.dis_synced(real_pv, *labels_real)
         (grad,) = torch.autograd.grad(d_real.sum(), real_pv, create_graph=True)
         gp = grad.pow(2).sum(dim=(1, 2)).mean()
-        d_fake = self.dis(self.crops(fake["pv"].detach()), *labels_fake)
+        d_fake = self.dis_synced(self.crops(fake["pv"].detach()), *labels_fake)
         critic = (d_real - 1).pow(2).mean() + (d_fake + 1).pow(2).mean()
         self.opt_d.zero_grad()
         (critic + cfg.w_gp * gp).backward()
@@ -261,18 +280,23 @@ class Trainer(ResumableTrainer):
 
 def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: int | None = None,
           resume: bool = False, checkpoints: Path = CHECKPOINTS, threads: int = 2,
-          data: Data | None = None, progress: bool = True, command: str = "") -> dict:
-    """Train (resuming when asked), export the weight-averaged generator to ``out_dir``; returns
-    the model card."""
-    torch.set_num_threads(threads)
-    started = time.perf_counter()
-    data = data or load_for(cfg, progress)
-    trainer = Trainer.started(cfg, data, checkpoints, progress, resume)
-    setup_s = time.perf_counter() - started
-    trainer.run(minutes, iterations)
+          data: Data | None = None, progress: bool = True, command: str = "", log_every: int = 25,
+          val_every: int = 500, device: str | None = None, licence: str | None = None) -> dict | None:
+    """Train (resuming when asked) on ``device`` (default: the best there is; under ``torchrun``,
+    in every process), export the weight-averaged generator to ``out_dir``; returns the model card
+    (None in the processes other than rank 0, which export nothing)."""
+    with hardware.session(threads, device) as where:
+        started = time.perf_counter()
+        with hardware.rank_zero_first():
+            data = data or load_for(cfg, progress)
+        trainer = Trainer.started(cfg, data, checkpoints, progress, resume, where)
+        setup_s = time.perf_counter() - started
+        trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
+    if trainer.rank:
+        return None
     probe = max(data.splits["val"].features, key=len)
     info = {
-        **recipe(cfg),
+        **recipe(cfg, licence),
         "clips": {k: len(c.features) for k, c in data.splits.items()},
         "contents": list(data.contents),
         **run_record(trainer, setup_s, command),
@@ -287,12 +311,12 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
              "5x the paper's; gradient penalty weight 10"),
         ],
     }
-    return write_model(trainer.ema, out_dir / f"{NAME}.onnx", info, probe)
+    return write_model(trainer.ema.cpu(), out_dir / f"{NAME}.onnx", info, probe)
 
 
 def load_generator(checkpoint: Path) -> StyleERD:
     """The weight-averaged generator of a training checkpoint (what the ONNX export holds)."""
-    saved = torch.load(checkpoint, weights_only=False)
+    saved = torch.load(checkpoint, map_location="cpu", weights_only=False)
     cfg = Config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved["config"].items()})
     erd = cfg.erd(tuple(saved["styles"]))
     model = StyleERD(erd, np.zeros(erd.n_features), np.ones(erd.n_features),

@@ -34,6 +34,7 @@ from motion_style_ros.models.stgcn import (
     StyleEncoder,
     pick,
 )
+from motion_style_ros.training import hardware
 from motion_style_ros.training.data import (
     Data,
     DataConfig,
@@ -122,20 +123,23 @@ class Trainer(ResumableTrainer):
     PARTS = ("gen", "mapping", "encoder", "dis", "gen_ema", "mapping_ema", "encoder_ema",
              "opt_g", "opt_d")
     # what a run continuing another (train's init_from) must share with it
-    NETWORK_SETTINGS = ("datasets", "window", "widths", "style_dim", "latent_dim", "mapping_hidden",
+    NETWORK_SETTINGS = ("datasets", "data", "window", "widths", "style_dim", "latent_dim", "mapping_hidden",
                         "std_floor")
 
     def __init__(self, cfg: Config, data: Data, checkpoints: Path = CHECKPOINTS,
-                 progress: bool = True) -> None:
-        super().__init__(cfg, data, checkpoints, progress)
+                 progress: bool = True, device: torch.device | None = None) -> None:
+        super().__init__(cfg, data, checkpoints, progress, device)
         mean, std = normalisation(data.splits["train"].features, cfg.std_floor)
-        self.losses = Losses(cfg, mean, std)
+        self.losses = Losses(cfg, mean, std).to(self.device)
         net = cfg.networks(data.styles)
         torch.manual_seed(cfg.seed)
-        self.gen = Generator(net, mean, std)
-        self.mapping = MappingNetwork(net)
-        self.encoder = StyleEncoder(net, mean, std)
-        self.dis = Discriminator(net, mean, std)
+        self.gen, self.mapping, self.encoder, self.dis = (m.to(self.device) for m in (
+            Generator(net, mean, std), MappingNetwork(net), StyleEncoder(net, mean, std),
+            Discriminator(net, mean, std)))
+        # the networks whose gradients are averaged over processes (the discriminator only in its
+        # own update: the generator's reads it frozen)
+        self.gen_synced, self.mapping_synced, self.encoder_synced, self.dis_synced = (
+            self.synced(m) for m in (self.gen, self.mapping, self.encoder, self.dis))
         self.gen_ema, self.mapping_ema, self.encoder_ema = (
             copy.deepcopy(m).requires_grad_(False) for m in (self.gen, self.mapping, self.encoder))
         self.opt_g = torch.optim.Adam([
@@ -143,10 +147,10 @@ class Trainer(ResumableTrainer):
             {"params": self.mapping.parameters(), "lr": cfg.lr_mapping}], lr=cfg.lr, betas=cfg.betas)
         self.opt_d = torch.optim.Adam(self.dis.parameters(), lr=cfg.lr, betas=cfg.betas)
         val_rng = np.random.default_rng([cfg.seed, 3])
-        self.val_windows = windows(data.splits["val"], cfg.window, 64, val_rng)
+        self.val_windows = tuple(t.to(self.device) for t in windows(data.splits["val"], cfg.window, 64, val_rng))
         self.val_targets = other_styles(self.val_windows[1], len(data.styles), val_rng)
-        self.in_std = torch.as_tensor(std, dtype=torch.float32)
-        self.out_std = torch.as_tensor(std[: net.n_out], dtype=torch.float32)
+        self.in_std = torch.as_tensor(std, dtype=torch.float32, device=self.device)
+        self.out_std = torch.as_tensor(std[: net.n_out], dtype=torch.float32, device=self.device)
 
     @property
     def model(self) -> Generator:
@@ -167,14 +171,17 @@ class Trainer(ResumableTrainer):
 
     def target_codes(self, iteration: int, target: torch.Tensor, rng: np.random.Generator,
                      mapping: MappingNetwork, encoder: StyleEncoder) -> tuple[torch.Tensor, torch.Tensor]:
-        """Two target style codes per row: from noise (even iterations) or from real windows of the
-        target style (odd iterations)."""
+        """Two target style codes per row of the global batch's ``target`` (on the CPU), this
+        process's share: from noise (even iterations) or from real windows of the target style (odd
+        iterations)."""
         if iteration % 2 == 0:
             z = torch.from_numpy(rng.standard_normal((2, len(target), self.cfg.latent_dim)).astype(np.float32))
+            z0, z1, target = self.shard(z[0], z[1], target)
             onehot = F.one_hot(target, len(self.data.styles)).float()
-            return mapping(z[0], onehot), mapping(z[1], onehot)
+            return mapping(z0, onehot), mapping(z1, onehot)
         refs = [style_windows(self.data.splits["train"], self.cfg.window, target.numpy(), rng)
                 for _ in range(2)]
+        *refs, target = self.shard(*refs, target)
         return pick(encoder(refs[0])[0], target), pick(encoder(refs[1])[0], target)
 
 
@@ -184,9 +191,10 @@ class Trainer(ResumableTrainer):
         rng = np.random.default_rng([cfg.seed, 0, iteration])
         x, style, _ = windows(self.data.splits["train"], cfg.window, cfg.batch, rng)
         target = other_styles(style, n_styles, rng)
-        contacts = x[..., self.losses.contact_cols]
         code_rng = np.random.default_rng([cfg.seed, 4, iteration])
-        s_trg, s_trg2 = self.target_codes(iteration, target, code_rng, self.mapping, self.encoder)
+        s_trg, s_trg2 = self.target_codes(iteration, target, code_rng, self.mapping_synced, self.encoder_synced)
+        x, style, target = self.shard(x, style, target)
+        contacts = x[..., self.losses.contact_cols]
 
         # discriminator: real windows of their own style vs transfers to the target style; the R1
         # penalty every r1_every iterations with that much more weight (lazy regularisation)
@@ -195,12 +203,12 @@ class Trainer(ResumableTrainer):
             fake, _ = self.full(self.gen(x, s_trg), contacts)
         lazy = iteration % cfg.r1_every == 0
         x_real = x.clone().requires_grad_(lazy)
-        d_real = _at(self.dis(x_real), style)
-        r1 = torch.zeros(())
+        d_real = _at(self.dis_synced(x_real), style)
+        r1 = torch.zeros((), device=self.device)
         if lazy:
             (grad,) = torch.autograd.grad(d_real.sum(), x_real, create_graph=True)
             r1 = 0.5 * (grad * self.in_std).pow(2).sum(dim=(1, 2)).mean()  # w.r.t. normalised input
-        d_fake = _at(self.dis(fake), target)
+        d_fake = _at(self.dis_synced(fake), target)
         critic = F.softplus(-d_real).mean() + F.softplus(d_fake).mean()
         self.opt_d.zero_grad()
         (critic + cfg.w_r1 * cfg.r1_every * r1).backward()
@@ -208,10 +216,10 @@ class Trainer(ResumableTrainer):
 
         # generator, mapping network, style encoder
         self.dis.requires_grad_(False)
-        out = self.gen(x, s_trg)
+        out = self.gen_synced(x, s_trg)
         fake, fake_views = self.full(out, contacts)
         adv = F.softplus(-_at(self.dis(fake), target)).mean()
-        sty = (s_trg - pick(self.encoder(fake)[0], target)).abs().mean()
+        sty = (s_trg - pick(self.encoder_synced(fake)[0], target)).abs().mean()
         with torch.no_grad():
             out2 = self.gen(x, s_trg2)
         if cfg.ds_cap is None:
@@ -219,12 +227,12 @@ class Trainer(ResumableTrainer):
         else:  # per window: mean joint distance of the two poses, up to the cap
             apart = (pose(fake_views["pos"]) - pose(self.losses.views(out2)["pos"])).norm(dim=-1)
             ds = apart.mean(dim=(1, 2)).clamp(max=cfg.ds_cap).mean() / self.losses.pos_scale
-        codes, logits = self.encoder(x)
+        codes, logits = self.encoder_synced(x)
         s_src = pick(codes, style)
         cls = F.cross_entropy(logits, style)
         real = self.losses.views(x[..., : self.gen.cfg.n_out])
-        cyc = sum(self.losses.reconstruction(self.losses.views(self.gen(fake, s_src)), real).values())
-        idt = sum(self.losses.reconstruction(self.losses.views(self.gen(x, s_src)), real).values())
+        cyc = sum(self.losses.reconstruction(self.losses.views(self.gen_synced(fake, s_src)), real).values())
+        idt = sum(self.losses.reconstruction(self.losses.views(self.gen_synced(x, s_src)), real).values())
         # feet the input holds still (contact at this frame and the one before) stay still
         still = (contacts[:, 1:] * contacts[:, :-1])[..., None]
         foot_vel = fake_views["vel"][:, :, self.losses.feet]
@@ -256,14 +264,14 @@ class Trainer(ResumableTrainer):
         real = self.losses.views(x[..., : gen.cfg.n_out])
         rec = self.losses.reconstruction(self.losses.views(gen(x, pick(codes, style))), real)
         z = torch.from_numpy(np.random.default_rng([self.cfg.seed, 5]).standard_normal(
-            (len(style), self.cfg.latent_dim)).astype(np.float32))
+            (len(style), self.cfg.latent_dim)).astype(np.float32)).to(self.device)
         s_trg = mapping(z, F.one_hot(self.val_targets, len(self.data.styles)).float())
         out = gen(x, s_trg)
         fake, _ = self.full(out, x[..., self.losses.contact_cols])
         transferred = encoder(fake)[1].argmax(-1)
         # diversity: outputs under a second seed, against outputs under another target style
         z2 = torch.from_numpy(np.random.default_rng([self.cfg.seed, 6]).standard_normal(
-            z.shape).astype(np.float32))
+            z.shape).astype(np.float32)).to(self.device)
         other = (self.val_targets + 1) % len(self.data.styles)
         seeds = gen(x, mapping(z2, F.one_hot(self.val_targets, len(self.data.styles)).float()))
         styles = gen(x, mapping(z, F.one_hot(other, len(self.data.styles)).float()))
@@ -278,21 +286,27 @@ class Trainer(ResumableTrainer):
 def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: int | None = None,
           resume: bool = False, checkpoints: Path = CHECKPOINTS, threads: int = 2,
           data: Data | None = None, progress: bool = True, command: str = "",
-          log_every: int = 25, val_every: int = 500, init_from: int | None = None) -> dict:
+          log_every: int = 25, val_every: int = 500, init_from: int | None = None, device: str | None = None,
+          licence: str | None = None) -> dict | None:
     """Train (resuming when asked; a new run with ``init_from`` continues that seed's run under
-    this config), export the weight averages to ``out_dir``; returns the card."""
-    torch.set_num_threads(threads)
-    started = time.perf_counter()
-    data = data or load_for(cfg, progress)
-    trainer = Trainer.started(cfg, data, checkpoints, progress, resume)
-    if init_from is not None and trainer.state["iteration"] == 0:
-        trainer.initialise(Trainer.folder(checkpoints, init_from) / "checkpoint.pt", Trainer.NETWORK_SETTINGS)
-        print(f"continuing seed {init_from}'s run at iteration {trainer.state['iteration']}")
-    setup_s = time.perf_counter() - started
-    trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
+    this config) on ``device`` (default: the best there is; under ``torchrun``, in every process),
+    export the weight averages to ``out_dir``; returns the card (None in the processes other than
+    rank 0, which export nothing)."""
+    with hardware.session(threads, device) as where:
+        started = time.perf_counter()
+        with hardware.rank_zero_first():
+            data = data or load_for(cfg, progress)
+        trainer = Trainer.started(cfg, data, checkpoints, progress, resume, where)
+        if init_from is not None and trainer.state["iteration"] == 0:
+            trainer.initialise(Trainer.folder(checkpoints, init_from) / "checkpoint.pt", Trainer.NETWORK_SETTINGS)
+            print(f"continuing seed {init_from}'s run at iteration {trainer.state['iteration']}")
+        setup_s = time.perf_counter() - started
+        trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
+    if trainer.rank:
+        return None
     probe = max(data.splits["val"].features, key=len)
     info = {
-        **recipe(cfg),
+        **recipe(cfg, licence),
         "clips": {k: len(c.features) for k, c in data.splits.items()},
         **run_record(trainer, setup_s, command),
         **({"continued_from": trainer.state["init_from"]} if "init_from" in trainer.state else {}),
@@ -309,7 +323,7 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
             f"Adam betas {cfg.betas}, learning rate {cfg.lr} (mapping {cfg.lr_mapping}), batch {cfg.batch}",
         ],
     }
-    return write_model(trainer.gen_ema, trainer.mapping_ema, trainer.encoder_ema, out_dir / f"{NAME}.onnx",
-                       info, probe)
+    return write_model(trainer.gen_ema.cpu(), trainer.mapping_ema.cpu(), trainer.encoder_ema.cpu(),
+                       out_dir / f"{NAME}.onnx", info, probe)
 
 

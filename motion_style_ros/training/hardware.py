@@ -1,0 +1,92 @@
+"""Where training runs: the device (``--device cpu|cuda|mps``, default the best there is) and, under
+``torchrun``, the process group of data-parallel training (NCCL between GPUs, gloo on CPUs).
+
+Mixed precision: the stylizers train in float32 on every device (their critics' gradient
+penalties differentiate through a gradient, where float16 underflows and bfloat16 loses the
+penalty's small terms); the judges, plain classifiers, run their forward passes in bfloat16 on CUDA
+(:func:`autocast`), which needs no loss scaling."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator
+
+import torch
+import torch.distributed as dist
+
+from motion_style_ros.errors import MotionStyleError
+
+DEVICES = ("cpu", "cuda", "mps")
+
+
+def available() -> list[str]:
+    """The devices this machine's torch can train on, best first."""
+    found = ["cuda"] if torch.cuda.is_available() else []
+    found += ["mps"] if torch.backends.mps.is_available() else []
+    return [*found, "cpu"]
+
+
+def device(name: str | None = None) -> torch.device:
+    """The device called ``name`` (None: the best available); under ``torchrun`` on CUDA, this
+    process's GPU (``LOCAL_RANK``). A device that is not there is a one-line error naming those that are."""
+    here = available()
+    name = name or here[0]
+    if name not in DEVICES:
+        raise MotionStyleError(f"--device {name}: not a device; allowed: {', '.join(DEVICES)}")
+    if name not in here:
+        why = " (this torch is built without CUDA)" if name == "cuda" and torch.version.cuda is None else ""
+        raise MotionStyleError(f"--device {name}: not available on this machine{why}; available: "
+                               f"{', '.join(here)}")
+    if name == "cuda":
+        return torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
+    return torch.device(name)
+
+
+def start(where: torch.device) -> None:
+    """Join the process group when started by ``torchrun`` with more than one process."""
+    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
+        if where.type == "cuda":
+            torch.cuda.set_device(where)
+        dist.init_process_group("nccl" if where.type == "cuda" else "gloo")
+
+
+def stop() -> None:
+    """Leave the process group (if :func:`start` joined one)."""
+    if dist.is_initialized():
+        dist.destroy_process_group()
+
+
+@contextlib.contextmanager
+def session(threads: int, name: str | None = None) -> Iterator[torch.device]:
+    """A training run's device (:func:`device`), CPU threads and, under ``torchrun``, process group."""
+    torch.set_num_threads(threads)
+    where = device(name)
+    start(where)
+    try:
+        yield where
+    finally:
+        stop()
+
+
+def rank() -> int:
+    return dist.get_rank() if dist.is_initialized() else 0
+
+
+def world() -> int:
+    return dist.get_world_size() if dist.is_initialized() else 1
+
+
+@contextlib.contextmanager
+def rank_zero_first() -> Iterator[None]:
+    """Rank 0 runs the block before the others (it writes the caches and the split they then read)."""
+    if rank() != 0:
+        dist.barrier()
+    yield
+    if rank() == 0 and dist.is_initialized():
+        dist.barrier()
+
+
+def autocast(where: torch.device) -> contextlib.AbstractContextManager:
+    """bfloat16 forward passes on CUDA, float32 elsewhere (see the module docstring)."""
+    return torch.autocast("cuda", dtype=torch.bfloat16, enabled=where.type == "cuda")
