@@ -197,43 +197,54 @@ _RUN = """
 import sys
 from pathlib import Path
 
-from motion_style_ros.training import recurrent
+from motion_style_ros.training import recurrent, stgcn
 
-folder, checkpoints, iterations = sys.argv[1:]
-recurrent.train(recurrent.tiny_config(data=folder, batch=8), Path(checkpoints) / "models",
-                iterations=int(iterations), checkpoints=Path(checkpoints), threads=1, progress=False,
-                log_every=1, device="cpu", resume=True)
+model, folder, checkpoints, iterations = sys.argv[1:]
+module = {"recurrent": recurrent, "stgcn": stgcn}[model]
+module.train(module.tiny_config(data=folder, batch=8), Path(checkpoints) / "models", iterations=int(iterations),
+             checkpoints=Path(checkpoints), threads=1, progress=False, log_every=1, device="cpu", resume=True)
 """
+# what each trainer checkpoints, and its exported file
+_PARTS = {"recurrent": (("model", "dis", "ema"), "style_erd.onnx"),
+          "stgcn": (("gen", "mapping", "encoder", "dis", "gen_ema"), "stgcn.onnx")}
 
 
-def test_torchrun_with_gloo_follows_one_process_with_the_whole_batch_and_resumes_in_one(folder, tmp_path, env):
-    """2 processes of 4 windows each against 1 of 8: the same losses (the log's 5 decimals) and
-    weights (1e-4; measured 1.1e-6 after 6 iterations), and the 2-process checkpoint continued in
-    one process as the one-process run continues."""
+@pytest.mark.parametrize("model", ["recurrent", "stgcn"])
+def test_torchrun_with_gloo_follows_one_process_with_the_whole_batch_and_resumes_in_one(model, folder, tmp_path,
+                                                                                        env):
+    """2 processes of 4 windows each against 1 of 8, 6 iterations: the same train losses (2e-5, the
+    log keeps 5 decimals) and weights (1e-3: Adam turns float rounding in near-zero gradients into
+    steps of up to its learning rate; measured 1.1e-6 for Style-ERD, 1.5e-4 for ST-GCN), and the
+    2-process checkpoint continued in one process as the one-process run continues."""
     script = tmp_path / "run.py"
     script.write_text(textwrap.dedent(_RUN))
     env = {**env, "OMP_NUM_THREADS": "1"}
+    parts, exported = _PARTS[model]
 
     def train(where, iterations, processes=1):
         launch = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node",
                   str(processes)] if processes > 1 else [sys.executable]
-        out = subprocess.run([*launch, str(script), str(folder), str(where), str(iterations)],
+        out = subprocess.run([*launch, str(script), model, str(folder), str(where), str(iterations)],
                              check=False, capture_output=True, text=True, env=env, timeout=300)
         assert out.returncode == 0, out.stderr[-2000:]
-        return [json.loads(line) for line in (where / "recurrent_0" / "losses.jsonl").read_text().splitlines()]
+        log = (where / f"{model}_0" / "losses.jsonl").read_text().splitlines()
+        return [e for e in map(json.loads, log) if "rec" in e]
+
+    def agree(a, b):
+        assert [e["iteration"] for e in a] == [e["iteration"] for e in b]
+        for x, y in zip(a, b):
+            assert all(abs(x[k] - y[k]) <= 2e-5 for k in x if k != "seconds"), (x, y)
 
     both, one = train(tmp_path / "two", 6, processes=2), train(tmp_path / "one", 6)
-    assert [e["iteration"] for e in both if "rec" in e] == list(range(1, 7))
-    for a, b in zip(both, one, strict=True):
-        assert a.keys() == b.keys()
-        assert all(abs(a[k] - b[k]) <= 2e-5 for k in a if k != "seconds"), (a, b)
-    saved = [torch.load(where / "recurrent_0" / "checkpoint.pt", weights_only=False) for where in
+    assert [e["iteration"] for e in both] == list(range(1, 7))
+    agree(both, one)
+    saved = [torch.load(where / f"{model}_0" / "checkpoint.pt", weights_only=False) for where in
              (tmp_path / "two", tmp_path / "one")]
-    for part in ("model", "dis", "ema"):
+    for part in parts:
         for key, value in saved[0][part].items():
-            torch.testing.assert_close(value, saved[1][part][key], atol=1e-4, rtol=0)
+            torch.testing.assert_close(value, saved[1][part][key], atol=1e-3, rtol=0)
 
     resumed, continued = train(tmp_path / "two", 8), train(tmp_path / "one", 8)
-    assert [e["iteration"] for e in resumed if "rec" in e] == list(range(1, 9))
-    assert all(abs(a["rec"] - b["rec"]) <= 2e-5 for a, b in zip(resumed, continued) if "rec" in a)
-    assert (tmp_path / "two" / "models" / "style_erd.onnx").is_file()
+    assert [e["iteration"] for e in resumed] == list(range(1, 9))
+    agree(resumed, continued)
+    assert (tmp_path / "two" / "models" / exported).is_file()

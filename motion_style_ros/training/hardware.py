@@ -43,9 +43,14 @@ def device(name: str | None = None) -> torch.device:
     return torch.device(name)
 
 
+def processes() -> int:
+    """How many processes ``torchrun`` started (1 without it)."""
+    return int(os.environ.get("WORLD_SIZE", "1"))
+
+
 def start(where: torch.device) -> None:
     """Join the process group when started by ``torchrun`` with more than one process."""
-    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
+    if processes() > 1 and not dist.is_initialized():
         if where.type == "cuda":
             torch.cuda.set_device(where)
         dist.init_process_group("nccl" if where.type == "cuda" else "gloo")

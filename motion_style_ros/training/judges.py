@@ -22,6 +22,7 @@ from torch import nn
 from tqdm import tqdm
 
 from motion_style_ros.core.features import encode, feature_layout
+from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.evaluation.judges import judge_file
 from motion_style_ros.io.datasets import ClipInfo, index_bandai, load_bandai
 from motion_style_ros.io.user_data import load_folder
@@ -194,6 +195,8 @@ def train(
 
     ``clips`` are :func:`encode_clips`' output, loaded here when not given.
     """
+    if hardware.processes() > 1:
+        raise MotionStyleError("the judges train in one process (minutes on a CPU): run without torchrun")
     torch.set_num_threads(threads)
     where = hardware.device(device)
     started = time.perf_counter()

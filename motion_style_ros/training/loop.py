@@ -66,6 +66,15 @@ class ResumableTrainer(ABC):
         """This process's share of a global batch, on its device."""
         return tuple(t.chunk(self.world)[self.rank].to(self.device) for t in tensors)
 
+    def mean_over_processes(self, value: torch.Tensor) -> torch.Tensor:
+        """The mean of ``value`` over the processes (itself in one), e.g. the normaliser of a loss
+        that is a ratio of sums over the batch."""
+        if self.world == 1:
+            return value
+        total = value.detach().to(self.device, copy=True)  # NCCL reduces GPU tensors only
+        dist.all_reduce(total)
+        return (total / self.world).to(value.device)
+
     def synced(self, module: nn.Module, unused: bool = False) -> nn.Module:
         """``module`` whose gradients are averaged over the processes (itself in one process);
         ``unused``: some of its parameters may get no gradient in a step."""
@@ -180,10 +189,9 @@ class ResumableTrainer(ABC):
 
     def _log_losses(self, recent: list[dict[str, float]], seconds: float) -> dict[str, float]:
         """Log the mean of each loss term over the ``recent`` steps; returns the means."""
-        means = torch.tensor([np.mean([r[k] for r in recent]) for k in recent[0]], dtype=torch.float64)
-        if self.world > 1:  # the mean over processes: the loss of the global batch
-            dist.all_reduce(means)
-            means /= self.world
+        # the mean over processes: the loss of the global batch
+        means = self.mean_over_processes(torch.tensor([np.mean([r[k] for r in recent]) for k in recent[0]],
+                                                      dtype=torch.float64))
         means = {k: round(float(v), 5) for k, v in zip(recent[0], means)}
         self._append_log({"iteration": self.state["iteration"], "seconds": round(seconds, 1), **means})
         return means
@@ -204,9 +212,10 @@ class ResumableTrainer(ABC):
             return state["train_seconds"] + time.perf_counter() - started
 
         def out_of_time() -> bool:  # rank 0's clock decides for every process
-            late = torch.tensor(float(spent() >= budget_s))
-            if self.world > 1:
-                dist.broadcast(late, 0)
+            if self.world == 1:
+                return spent() >= budget_s
+            late = torch.tensor(float(spent() >= budget_s), device=self.device)
+            dist.broadcast(late, 0)
             return bool(late)
 
         last_save, recent = time.perf_counter(), []

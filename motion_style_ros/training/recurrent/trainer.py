@@ -288,7 +288,7 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     with hardware.session(threads, device) as where:
         started = time.perf_counter()
         with hardware.rank_zero_first():
-            data = data or load_for(cfg, progress)
+            data = data or load_for(cfg, progress and not hardware.rank())
         trainer = Trainer.started(cfg, data, checkpoints, progress, resume, where)
         setup_s = time.perf_counter() - started
         trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)

@@ -236,7 +236,8 @@ class Trainer(ResumableTrainer):
         # feet the input holds still (contact at this frame and the one before) stay still
         still = (contacts[:, 1:] * contacts[:, :-1])[..., None]
         foot_vel = fake_views["vel"][:, :, self.losses.feet]
-        foot = (still * foot_vel.pow(2)).sum() / still.sum().clamp(min=1.0) / self.losses.vel_scale ** 2
+        frames = self.mean_over_processes(still.sum())  # so N processes' mean is one's whole-batch term
+        foot = (still * foot_vel.pow(2)).sum() / frames.clamp(min=1.0) / self.losses.vel_scale ** 2
         w_ds = cfg.w_ds * max(0.0, 1.0 - iteration / cfg.ds_iterations)
         total = (cfg.w_adv * adv + cfg.w_sty * sty - w_ds * ds + cfg.w_cyc * cyc + cfg.w_id * idt
                  + cfg.w_cls * cls + cfg.w_foot * foot)
@@ -295,11 +296,12 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     with hardware.session(threads, device) as where:
         started = time.perf_counter()
         with hardware.rank_zero_first():
-            data = data or load_for(cfg, progress)
+            data = data or load_for(cfg, progress and not hardware.rank())
         trainer = Trainer.started(cfg, data, checkpoints, progress, resume, where)
         if init_from is not None and trainer.state["iteration"] == 0:
             trainer.initialise(Trainer.folder(checkpoints, init_from) / "checkpoint.pt", Trainer.NETWORK_SETTINGS)
-            print(f"continuing seed {init_from}'s run at iteration {trainer.state['iteration']}")
+            if not trainer.rank:
+                print(f"continuing seed {init_from}'s run at iteration {trainer.state['iteration']}")
         setup_s = time.perf_counter() - started
         trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
     if trainer.rank:
