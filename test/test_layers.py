@@ -34,3 +34,17 @@ def test_imports_point_downward(path):
         for heavy, layers in HEAVY.items():
             if parts[0] == heavy:
                 assert layer in layers, f"{layer} imports {heavy}"
+
+
+TESTS = Path(__file__).resolve().parent
+
+
+@pytest.mark.parametrize("path", sorted(TESTS.glob("*.py")), ids=lambda p: p.name)
+def test_a_test_that_needs_torch_says_so(path):
+    """A runtime-only install (no torch: make test-runtime) runs every test but those that need
+    torch, which skip with a reason: a test module that imports torch, the models or the trainers
+    asks for torch with pytest.importorskip."""
+    wants = {name for name in imports(path)
+             if name.split(".")[0] == "torch" or name.startswith(("motion_style_ros.training", "motion_style_ros.models"))}
+    if wants:
+        assert 'importorskip("torch"' in path.read_text(), f"{path.name} imports {sorted(wants)}"
