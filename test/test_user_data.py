@@ -179,6 +179,29 @@ def test_the_judges_train_on_the_folder_and_judge_its_takes(folder, clip, tmp_pa
     assert judged.labels[0] in card["labels"] and judged.probabilities.shape == (1, 3)
 
 
+def test_eval_scores_a_model_of_the_folder_on_its_held_out_takes_with_its_judges(folder, tmp_path, env):
+    from motion_style_ros.training import judges, recurrent
+
+    models = tmp_path / "models"
+    recurrent.train(recurrent.tiny_config(data=str(folder)), models, iterations=2, checkpoints=tmp_path / "ckpt",
+                    progress=False)
+    for kind in ("style", "content"):
+        judges.train(judges.Config(kind=kind, data=str(folder), epochs=1, crops_per_epoch=32, batch=16), models,
+                     checkpoints=tmp_path / "ckpt", progress=False)
+    run = [sys.executable, "-m", "motion_style_ros.cli.main", "eval", "--data", str(folder), "--quiet",
+           "--stylizer", "recurrent", "--model", str(models / "style_erd.onnx"), "--out", str(tmp_path / "eval")]
+    out = subprocess.run([*run, "--judges", str(models)], check=False, capture_output=True, text=True, env=env)
+    assert out.returncode == 0, out.stderr[-2000:]
+    report = json.loads((tmp_path / "eval" / "report.json").read_text())
+    assert report["settings"]["test_clips"] == 3 and report["settings"]["styles"] == ["casual", "elderly", "normal"]
+    assert str(folder) in report["settings"]["data"]
+    for name in ("recurrent", "identity", "oracle"):  # each test take into the two other styles
+        assert report["systems"][name]["overall"]["pairs"] == 6
+    assert report["systems"]["oracle"]["overall"]["content_accuracy"] is not None
+    alone = subprocess.run(run, check=False, capture_output=True, text=True, env=env)
+    assert alone.returncode == 2 and "--data and --judges go together" in alone.stderr
+
+
 def test_a_device_that_is_not_there_is_one_line(folder, tmp_path, env):
     from motion_style_ros.training import hardware
 

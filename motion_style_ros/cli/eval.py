@@ -34,6 +34,12 @@ def add_parser(subparsers):
                    help="the Bandai set whose test takes are restyled into its own other styles "
                         "(default: 2; 1: its 18 held-out takes into its 15 styles; --record "
                         "writes it as eval_dataset1)")
+    p.add_argument("--data", default=None, metavar="PATH",
+                   help="instead of Bandai's: the test takes of a labelled BVH folder (its split, "
+                        "written when it was indexed), restyled into its other styles; needs --judges")
+    p.add_argument("--judges", default=None, metavar="DIR",
+                   help="--data: the folder of judges trained on it ('motion-style train judges --data "
+                        "PATH --out DIR'; the second panel where DIR has it)")
     p.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--record", action="store_true",
@@ -81,23 +87,27 @@ def add_parser(subparsers):
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.evaluation import harness
-    from motion_style_ros.evaluation.judges import Judge
     from motion_style_ros.runtime.backends import backend
     from motion_style_ros.runtime.offline import stylizer
 
     names = args.stylizer or []
     if args.reference_codes and names != ["stgcn"]:
-        from motion_style_ros.errors import MotionStyleError
-
         raise MotionStyleError("--reference-codes scores the windowed stylizer: give --stylizer stgcn")
+    if bool(args.data) != bool(args.judges):
+        raise MotionStyleError("--data and --judges go together: the shipped judges know the Bandai styles "
+                               "only (train them on the folder with 'motion-style train judges --data PATH "
+                               "--out DIR')")
+    if args.data and (args.unseen or args.controls or args.enrol or args.live or args.reference_codes):
+        raise MotionStyleError("--data scores the folder's held-out takes; --unseen, --controls, --enrol, "
+                               "--live and --reference-codes use the Bandai data")
     # Build the stylizers first: a missing model fails here in one line, before the slow part.
     stylizers = {name: stylizer(name, args.model, args.alpha, args.threads, args.seed_spread,
                                 **backend(name).settings(harness.PUBLISHED))
                  for name in names}
     if args.live:
         from motion_style_ros.cli import eval_live
-        from motion_style_ros.errors import MotionStyleError
 
         if len(names) != 1:
             raise MotionStyleError("--live streams one stylizer: give one --stylizer")
@@ -108,9 +118,8 @@ def run(args: argparse.Namespace) -> int:
         return run_controls(args)
     if args.enrol:
         return run_enrolment(args)
-    judges = Judge("style", args.threads), Judge("content", args.threads)
-    second = Judge("style", args.threads, panel=2), Judge("content", args.threads, panel=2)
-    clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)
+    judges, second = _judges(args)
+    clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset, folder=args.data)
     if args.reference_codes:
         from motion_style_ros.evaluation.windowed import DEFAULT_MODEL, ReferenceStylizer
 
@@ -119,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
     stylizers.update(harness.baselines(clips, args.seed))
     settings = {"pairs_per_cell": args.pairs_per_cell, "seed": args.seed, "alpha": args.alpha,
-                "dataset": args.dataset,
+                "dataset": args.data or args.dataset,
+                **({"data": f"the user's labelled BVH folder {args.data}, test takes"} if args.data else {}),
                 **({} if args.seed_spread is None else {"seed_spread": args.seed_spread})}
     report = harness.evaluate(stylizers, clips, pairs, *judges, progress=not args.quiet,
                               settings=settings, second=second)
@@ -132,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
                    for name, system in report["systems"].items()}
         key = ("eval_reference_codes" if args.reference_codes
                else f"eval_seed_spread_{args.seed_spread:g}" if args.seed_spread is not None
-               else "eval" if args.dataset == 2 else f"eval_dataset{args.dataset}")
+               else "eval" if args.dataset == 2 or args.data else f"eval_dataset{args.dataset}")
         _record(args, key,
                 {"settings": report["settings"], "systems": summary})
     for name, system in report["systems"].items():
@@ -141,6 +151,22 @@ def run(args: argparse.Namespace) -> int:
                   f"(e.g. {system['skipped'][0]['reason']})")
     print(f"wrote {json_path} and {png_path}")
     return 0
+
+
+def _judges(args: argparse.Namespace) -> tuple[tuple, tuple | None]:
+    """Both panels' style and content judges: the shipped ones, or those in --judges for --data
+    (the second panel where the folder has it)."""
+    from pathlib import Path
+
+    from motion_style_ros.evaluation.judges import KINDS, Judge, judge_file
+
+    if not args.data:
+        return ((Judge("style", args.threads), Judge("content", args.threads)),
+                (Judge("style", args.threads, panel=2), Judge("content", args.threads, panel=2)))
+    panels = [[Path(args.judges) / judge_file(kind, panel) for kind in KINDS] for panel in (1, 2)]
+    first = tuple(Judge(path, args.threads) for path in panels[0])
+    second = tuple(Judge(path, args.threads) for path in panels[1]) if all(p.is_file() for p in panels[1]) else None
+    return first, second
 
 
 def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:

@@ -6,7 +6,8 @@ scale the stylizers are read on: ``identity`` (the source unchanged: perfect con
 style) and ``oracle`` (a real test take of the source's content performed in the target style:
 what a perfect stylizer could reach).
 
-Pairs come from the test takes of Bandai dataset-2: for each (content, source style) cell, up to
+Pairs come from the test takes of Bandai dataset-2 (or of a user's labelled folder, judged by judges
+trained on it): for each (content, source style) cell, up to
 ``pairs_per_cell`` takes are drawn with the seed, and each is paired with every other style as
 target. The FMD of a target style compares the embeddings of every output made for that style with
 those of all real test takes of that style. The oracle's outputs are drawn from that same set of
@@ -30,6 +31,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.evaluation import metrics
 from motion_style_ros.evaluation.judges import Judge
 from motion_style_ros.io.datasets import ClipInfo, index_bandai, load_bandai
+from motion_style_ros.io.user_data import load_folder
 
 Stylizer = Callable[[Motion, str], Motion]
 Clip = tuple[ClipInfo, Motion]
@@ -66,9 +68,14 @@ class Pair:
     target: str
 
 
-def held_out_clips(root: Path | None = None, progress: bool = True, dataset: int = 2) -> list[Clip]:
+def held_out_clips(root: Path | None = None, progress: bool = True, dataset: int = 2,
+                   folder: Path | str | None = None) -> list[Clip]:
     """The held-out test takes of one Bandai set (dataset-1's: its second walk takes, and the
-    second call, punch and slash takes in ``normal-d1``), canonical skeleton, 30 fps."""
+    second call, punch and slash takes in ``normal-d1``) or of a user's labelled ``folder``,
+    canonical skeleton, 30 fps."""
+    if folder is not None:
+        user = load_folder(folder, progress)
+        return [(info, m) for info, m in zip(user.infos, user.motions) if info.split == "test"]
     infos = [i for i in index_bandai(root, datasets=(dataset,)) if i.split == "test"]
     return load_bandai(infos, progress=progress)
 
@@ -309,7 +316,7 @@ def plot(report: dict, path: Path, model: str | None = None) -> None:
         bars = ax.bar(names, _nan(overall[key]), color=colours)
         ax.bar_label(bars, fmt="%.3g")
         ax.margins(y=0.15)
-        if key == "fmd":
+        if key == "fmd" and _positive(overall[key]):
             ax.set_yscale("log")  # the baselines lie orders of magnitude apart
         ax.set_title(f"{METRICS[key]}\n({better}{' is better' if better in ('higher', 'lower') else ''})")
         ax.tick_params(axis="x", rotation=20)
@@ -325,13 +332,21 @@ def plot(report: dict, path: Path, model: str | None = None) -> None:
         ax.bar(np.arange(len(styles)) + (i - (len(names) - 1) / 2) * width, _nan(values), width,
                color=colours[i], label=n + (" (model)" if n == model else ""))
     ax.set_xticks(np.arange(len(styles)), styles, rotation=20)
-    ax.set_yscale("log")
+    if _positive([report["systems"][n]["per_style"][s]["fmd"] for n in names for s in styles]):
+        ax.set_yscale("log")
     ax.set_title("FMD per target style (lower is better)")
     ax.legend(fontsize="small", ncols=len(names), loc="upper center", bbox_to_anchor=(0.5, -0.15))
     settings = report["settings"]
     fig.suptitle(f"{settings['pairs']} (source clip, target style) pairs from {settings['test_clips']} "
-                 "Bandai dataset-2 test takes")
+                 + (f"test takes of {settings['dataset']}" if isinstance(settings.get("dataset"), str)
+                    else "Bandai dataset-2 test takes"))
     fig.savefig(path, dpi=100)
+
+
+def _positive(values: list) -> bool:
+    """Any value a log axis can show (FMD needs two outputs and two takes of a style; a small
+    folder may have none)."""
+    return any(v is not None and v > 0 for v in values)
 
 
 def _nan(values: list) -> list[float]:
