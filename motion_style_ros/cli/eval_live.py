@@ -27,7 +27,9 @@ def stream_clip(graph, path: Path, styles: list[str], backend: str, fps: float) 
     from motion_style_ros.cli.live import STARTUP_SECONDS, stamp_ns
     from motion_style_ros.evaluation import live
 
-    qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
+    # Reliable from end to end: the figures compare stylized frames, and a frame lost on a busy
+    # machine would only thin them (the live rig's best-effort transport is not what is measured).
+    qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
     inputs: list[int] = []
     outputs: dict[str, dict[int, tuple[list[str], np.ndarray]]] = {s: {} for s in styles}
     subscriptions = [graph.node.create_subscription(
@@ -38,7 +40,7 @@ def stream_clip(graph, path: Path, styles: list[str], backend: str, fps: float) 
         subscriptions.append(graph.node.create_subscription(JointState, f"/{style}/joint_states", keep, qos))
         # A deep queue: a stylizer still warming up (its first model calls) loses no frame.
         graph.start("stylizer", name=f"stylizer_{style}", backend=backend, target_style=style,
-                    input_fps=float(fps), qos_depth=QUEUE_DEPTH,
+                    input_fps=float(fps), qos_reliability="reliable", qos_depth=QUEUE_DEPTH,
                     remaps={"joint_states": "/clip/joint_states",
                             "stylized/joint_states": f"/{style}/joint_states",
                             "stylized/trajectory": f"/{style}/trajectory"})
@@ -49,6 +51,7 @@ def stream_clip(graph, path: Path, styles: list[str], backend: str, fps: float) 
                          "the stylizers to start", STARTUP_SECONDS)
         graph.spin_for(SETTLE_SECONDS)
         player = graph.start("bvh_player", file=str(path), topic="/clip/joint_states",
+                             qos_reliability="reliable", qos_depth=QUEUE_DEPTH,
                              wait_for_subscribers=len(styles) + 1, start_frame=live.start_frame(path))
         graph.spin_until(lambda: player.poll() is not None, f"{path.name} to play", STARTUP_SECONDS + 120.0)
         graph.spin_for(1.0)  # frames still in flight

@@ -6,7 +6,6 @@ import sys
 
 import numpy as np
 
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.core.retarget import Retargeter, find_map
@@ -63,7 +62,7 @@ class BvhPlayer(PlayerNode):
         self.lap = lap(self.frames, self.layout)
         self.passes = 0
         self.index = 0
-        self.publisher = self.create_publisher(JointState, topic, qos_profile_sensor_data)
+        self.publisher = self.create_publisher(JointState, topic, self.stream_qos())
         self.create_timer(1.0 / (fps * rate), self._tick)
         self.get_logger().info(f"playing {path}: {len(self.frames)} frames at {fps:g} fps x {rate:g} "
                                f"on {self.publisher.topic_name}")
