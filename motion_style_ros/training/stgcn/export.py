@@ -106,10 +106,11 @@ def card(gen: Generator, mapping: MappingNetwork, encoder: StyleEncoder, path: P
         "parameters": {name: int(sum(p.numel() for p in m.parameters()))
                        for name, m in (("generator", gen), ("mapping", mapping), ("style_encoder", encoder))},
     }
+    neutral = training.get("config", {}).get("neutral", NEUTRAL)  # the run's (--neutral), else normal
     return export.stylizer_card(
         path, "windowed", "motion style transfer over windows of frames, streamed by overlap-add; style "
         "codes from a latent seed (mapping network) or a reference clip (style encoder)",
-        cfg.styles, NEUTRAL if NEUTRAL in cfg.styles else cfg.styles[0], interface, architecture, training)
+        cfg.styles, neutral if neutral in cfg.styles else cfg.styles[0], interface, architecture, training)
 
 
 def write_model(gen: Generator, mapping: MappingNetwork, encoder: StyleEncoder, path: Path,
