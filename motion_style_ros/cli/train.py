@@ -181,6 +181,7 @@ def run_judges(args) -> int:
     if args.epochs is not None and args.epochs < 1:
         raise MotionStyleError(f"--epochs must be at least 1, got {args.epochs}")
     out = _output(args)
+    _training("hardware").device(args.device)  # a missing device fails before the data loads
     changes = {k: v for k, v in (("epochs", args.epochs), ("seed", args.seed)) if v is not None}
     changes["data"] = args.data or ""
     clips = judges.encode_clips(folder=changes["data"])

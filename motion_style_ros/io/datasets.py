@@ -46,7 +46,7 @@ import logging
 import os
 import re
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from functools import cache as memoize
@@ -331,31 +331,46 @@ def _build(base: Path, dataset: int, progress: bool) -> dict[str, np.ndarray]:
         else:
             kept.append([info.name, info.content, info.style, info.take])
             arrays.append(result)
-    lengths = [len(r) for r, _ in arrays]
+    return pack(arrays, kept, problems, start)
+
+
+def pack(parsed: list[tuple[np.ndarray, np.ndarray]], kept: list, problems: list[str], started: float
+         ) -> dict[str, np.ndarray]:
+    """The cache entry of parsed clips (float32 canonical rotations and Hips path each): the arrays
+    end to end with each clip's first frame, the ``kept`` clips' labels, the skip messages and the
+    seconds since ``started``."""
     return {
-        "rotations": np.concatenate([r for r, _ in arrays]) if arrays else np.zeros((0, 22, 4), np.float32),
-        "hips": np.concatenate([h for _, h in arrays]) if arrays else np.zeros((0, 3), np.float32),
-        "starts": np.cumsum([0, *lengths]),
+        "rotations": np.concatenate([r for r, _ in parsed]) if parsed else np.zeros((0, 22, 4), np.float32),
+        "hips": np.concatenate([h for _, h in parsed]) if parsed else np.zeros((0, 3), np.float32),
+        "starts": np.cumsum([0, *(len(r) for r, _ in parsed)]),
         "clips": np.array(json.dumps(kept)),
         "problems": np.array(json.dumps(problems)),
-        "build_seconds": np.array(time.perf_counter() - start),
+        "build_seconds": np.array(time.perf_counter() - started),
     }
 
 
-def _cached(base: Path, dataset: int, progress: bool, rebuild: bool = False) -> _Cached:
-    """The parsed clips of one Bandai set (folder ``base``), from the cache or parsed and cached now."""
-    sources = [*_folder(base / "data").glob("*.bvh"), *base.glob("data/*.json"), *base.glob("cfg/*.txt")]
-    key = cache.source_key(sources)
-    name = f"bandai-{dataset}.v{CACHE_VERSION}"
+def cached_clips(name: str, key: str, build: Callable[[], dict[str, np.ndarray]], rebuild: bool = False
+                 ) -> tuple[dict[str, np.ndarray], list[str], bool]:
+    """The cache entry ``name`` of parsed clips (:func:`pack`), built and saved when missing, stale
+    or ``rebuild``; its skip messages (warned again when read from the cache, as a fresh parse
+    warns them); whether it was built now."""
     arrays = None if rebuild else cache.load(name, key)
     fresh = arrays is None
     if fresh:
-        arrays = _build(base, dataset, progress)
+        arrays = build()
         cache.save(name, key, arrays)
     problems = json.loads(str(arrays["problems"]))
     if not fresh:
         for message in problems:
             log.warning(message)
+    return arrays, problems, fresh
+
+
+def _cached(base: Path, dataset: int, progress: bool, rebuild: bool = False) -> _Cached:
+    """The parsed clips of one Bandai set (folder ``base``), from the cache or parsed and cached now."""
+    sources = [*_folder(base / "data").glob("*.bvh"), *base.glob("data/*.json"), *base.glob("cfg/*.txt")]
+    arrays, problems, fresh = cached_clips(f"bandai-{dataset}.v{CACHE_VERSION}", cache.source_key(sources),
+                                           lambda: _build(base, dataset, progress), rebuild)
     data = base / "data"
     infos = _with_committed_split(
         ClipInfo(f"bandai-{dataset}", data / f"{n}.bvh", n, c, s, t, "")

@@ -38,7 +38,7 @@ from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import cache
 from motion_style_ros.io.canonical import canonical_clip
-from motion_style_ros.io.datasets import BANDAI_FPS, ClipInfo
+from motion_style_ros.io.datasets import BANDAI_FPS, ClipInfo, cached_clips, pack
 
 log = logging.getLogger(__name__)
 
@@ -132,14 +132,7 @@ def _build(folder: Path, names: list[str], progress: bool) -> dict[str, np.ndarr
         else:
             kept.append(name)
             arrays.append(result)
-    return {
-        "rotations": np.concatenate([r for r, _ in arrays]) if arrays else np.zeros((0, 22, 4), np.float32),
-        "hips": np.concatenate([h for _, h in arrays]) if arrays else np.zeros((0, 3), np.float32),
-        "starts": np.cumsum([0, *(len(r) for r, _ in arrays)]),
-        "clips": np.array(json.dumps(kept)),
-        "problems": np.array(json.dumps(problems)),
-        "build_seconds": np.array(time.perf_counter() - start),
-    }
+    return pack(arrays, kept, problems, start)
 
 
 def _split(folder: Path, labelled: list[tuple[str, str]]) -> dict[str, str]:
@@ -184,17 +177,9 @@ def load_folder(path: Path | str, progress: bool = True, rebuild: bool = False) 
     problems: list[str] = []
     labels = _labels(folder, files, problems)
     names = sorted(labels)
-    key = cache.source_key(folder / n for n in names)
     entry = f"user-{hashlib.sha256(str(folder).encode()).hexdigest()[:16]}.v{CACHE_VERSION}"
-    arrays = None if rebuild else cache.load(entry, key)
-    fresh = arrays is None
-    if fresh:
-        arrays = _build(folder, names, progress)
-        cache.save(entry, key, arrays)
-    built = json.loads(str(arrays["problems"]))
-    if not fresh:
-        for message in built:
-            log.warning(message)
+    arrays, built, fresh = cached_clips(entry, cache.source_key(folder / n for n in names),
+                                        lambda: _build(folder, names, progress), rebuild)
     problems += built
     kept = json.loads(str(arrays["clips"]))
     if not kept:
