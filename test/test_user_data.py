@@ -164,6 +164,8 @@ def test_each_stylizer_trains_on_the_folder_exports_and_streams(backend, folder,
     assert card["licence"] == "CC0, the studio's own captures" and str(folder) in card["attribution"]
     assert card["training"]["clips"] == {"train": 3, "val": 3}
     assert card["training"]["history"]["iterations"] == 3
+    if backend == "recurrent":  # one content (style folders): no content network to train
+        assert card["training"]["history"]["content_network"]["iterations"] == 0
     _stream(backend, tmp_path / "models" / f"{card['name']}.onnx", clip, "elderly")
 
 

@@ -3,8 +3,10 @@
 
 Mixed precision: the stylizers train in float32 on every device (their critics' gradient
 penalties differentiate through a gradient, where float16 underflows and bfloat16 loses the
-penalty's small terms); the judges, plain classifiers, run their forward passes in bfloat16 on CUDA
-(:func:`autocast`), which needs no loss scaling."""
+penalty's small terms, and their LSTMs carry state over many frames); the first panel's judges,
+plain convolutional classifiers, run their forward passes in bfloat16 on CUDA (:func:`autocast`),
+which needs no loss scaling; the second panel's GRU stays in float32 (cuDNN's bfloat16 RNNs depend
+on the GPU). None of it is measured here: this machine has no GPU."""
 
 from __future__ import annotations
 
@@ -92,6 +94,7 @@ def rank_zero_first() -> Iterator[None]:
         dist.barrier()
 
 
-def autocast(where: torch.device) -> contextlib.AbstractContextManager:
-    """bfloat16 forward passes on CUDA, float32 elsewhere (see the module docstring)."""
-    return torch.autocast("cuda", dtype=torch.bfloat16, enabled=where.type == "cuda")
+def autocast(where: torch.device, safe: bool = True) -> contextlib.AbstractContextManager:
+    """bfloat16 forward passes on CUDA where ``safe`` for the network, float32 otherwise (see the
+    module docstring)."""
+    return torch.autocast("cuda", dtype=torch.bfloat16, enabled=safe and where.type == "cuda")

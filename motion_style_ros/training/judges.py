@@ -238,7 +238,7 @@ def train(
             disable=not progress,
         )
         for x, y in bar:
-            with hardware.autocast(where):
+            with hardware.autocast(where, safe=cfg.architecture == "cnn"):
                 logits, _ = model(x)
             loss = F.cross_entropy(logits.float(), y, label_smoothing=cfg.label_smoothing)
             optimizer.zero_grad()

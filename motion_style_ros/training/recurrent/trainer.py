@@ -143,8 +143,9 @@ def content_network(cfg: Config, data: Data, losses: Losses, path: Path, progres
             net.load_state_dict(saved["model"])
             return net.requires_grad_(False).eval(), saved["info"]
     optimizer = torch.optim.Adam(net.parameters(), lr=cfg.content_lr)
-    bar = tqdm(range(cfg.content_iterations), desc="content network", disable=not progress,
-               mininterval=PROGRESS_INTERVAL)
+    # one content (a folder labelled by style only) leaves nothing to learn: its random features stay
+    iterations = cfg.content_iterations if len(data.contents) > 1 else 0
+    bar = tqdm(range(iterations), desc="content network", disable=not progress, mininterval=PROGRESS_INTERVAL)
     for it in bar:
         x, _, content = (t.to(device) for t in windows(data.splits["train"], cfg.window, cfg.content_batch,
                                                         np.random.default_rng([cfg.seed, 1, it])))
@@ -159,7 +160,7 @@ def content_network(cfg: Config, data: Data, losses: Losses, path: Path, progres
     with torch.no_grad():
         logits, _ = net(losses.views(_frames(x))["content"])
     info = {"val_window_accuracy": round(float((logits.argmax(-1) == content).float().mean()), 4),
-            "window_frames": cfg.window, "iterations": cfg.content_iterations}
+            "window_frames": cfg.window, "iterations": iterations}
     path.parent.mkdir(parents=True, exist_ok=True)
     torch.save({"settings": _content_settings(cfg), "contents": list(data.contents),
                 "model": net.state_dict(), "info": info}, path)
