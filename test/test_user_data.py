@@ -245,6 +245,10 @@ def test_torchrun_with_gloo_follows_one_process_with_the_whole_batch_and_resumes
     script.write_text(textwrap.dedent(_RUN))
     env = {**env, "OMP_NUM_THREADS": "1"}
     parts, exported = _PARTS[model]
+    from motion_style_ros.training import data
+
+    def run_folder(where):  # apart from a Bandai run's
+        return where / f"{model}{data.data_tag(str(folder))}_0"
 
     def train(where, iterations, processes=1):
         launch = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node",
@@ -252,7 +256,7 @@ def test_torchrun_with_gloo_follows_one_process_with_the_whole_batch_and_resumes
         out = subprocess.run([*launch, str(script), model, str(folder), str(where), str(iterations)],
                              check=False, capture_output=True, text=True, env=env, timeout=300)
         assert out.returncode == 0, out.stderr[-2000:]
-        log = (where / f"{model}_0" / "losses.jsonl").read_text().splitlines()
+        log = (run_folder(where) / "losses.jsonl").read_text().splitlines()
         return [e for e in map(json.loads, log) if "rec" in e]
 
     def agree(a, b):
@@ -263,7 +267,7 @@ def test_torchrun_with_gloo_follows_one_process_with_the_whole_batch_and_resumes
     both, one = train(tmp_path / "two", 6, processes=2), train(tmp_path / "one", 6)
     assert [e["iteration"] for e in both] == list(range(1, 7))
     agree(both, one)
-    saved = [torch.load(where / f"{model}_0" / "checkpoint.pt", weights_only=False) for where in
+    saved = [torch.load(run_folder(where) / "checkpoint.pt", weights_only=False) for where in
              (tmp_path / "two", tmp_path / "one")]
     for part in parts:
         for key, value in saved[0][part].items():
@@ -273,3 +277,4 @@ def test_torchrun_with_gloo_follows_one_process_with_the_whole_batch_and_resumes
     assert [e["iteration"] for e in resumed] == list(range(1, 9))
     agree(resumed, continued)
     assert (tmp_path / "two" / "models" / exported).is_file()
+    assert not (tmp_path / "two" / f"{model}_0").exists()  # a Bandai run's checkpoint folder

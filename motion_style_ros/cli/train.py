@@ -139,6 +139,8 @@ def _data_flags(parser) -> None:
 
 def _data_fields(args) -> tuple[dict, str]:
     """The config fields of the data flags, and the flags as they would be typed again."""
+    import shlex
+
     from motion_style_ros.errors import MotionStyleError
 
     try:
@@ -154,8 +156,9 @@ def _data_fields(args) -> tuple[dict, str]:
     given = {"datasets": args.datasets, "speeds": args.speeds, "balance": f"{args.balance:g}",
              "exclude_styles": args.exclude_styles, "neutral": args.neutral}
     flags = "".join(f" --{k.replace('_', '-')} {v}" for k, v in given.items() if v != _DATA_DEFAULTS[k])
-    return fields, flags + (" --mirror" if args.mirror else "") + (f" --data {args.data} --out {args.out}"
-                                                                     if args.data else "")
+    user = "".join(f" --{k} {shlex.quote(v)}" for k, v in (("data", args.data), ("out", args.out),
+                                                            ("licence", args.licence)) if v and args.data)
+    return fields, flags + (" --mirror" if args.mirror else "") + user
 
 
 def _training(module: str):

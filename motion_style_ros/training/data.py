@@ -6,6 +6,7 @@ and augmentations a run uses is its config's ``datasets`` (or ``data``), ``neutr
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -168,6 +169,15 @@ def load_for(cfg: DataConfig, progress: bool = True) -> Data:
     """:func:`load_data` with a trainer config's data fields."""
     return load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance, mirror=cfg.mirror,
                      exclude=cfg.exclude, folder=cfg.data or None, neutral=cfg.neutral)
+
+
+def data_tag(data: str) -> str:
+    """What a run on a user's folder ``data`` adds to its checkpoint names, so that it never
+    replaces a Bandai run's checkpoint (nor another folder's): ``_<folder name>-<hash of its path>``."""
+    if not data:
+        return ""
+    folder = Path(data).resolve()
+    return f"_{folder.name}-{hashlib.sha256(str(folder).encode()).hexdigest()[:8]}"
 
 
 def recipe(cfg: DataConfig, licence: str | None = None) -> dict:

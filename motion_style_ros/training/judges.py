@@ -29,7 +29,7 @@ from motion_style_ros.io.user_data import load_folder
 from motion_style_ros.models.judge import ARCHITECTURES, Judge
 from motion_style_ros.runtime.contract import JUDGE
 from motion_style_ros.training import hardware
-from motion_style_ros.training.data import FPS, USER_LICENCE, normalisation
+from motion_style_ros.training.data import FPS, USER_LICENCE, data_tag, normalisation
 from motion_style_ros.training.export import data_fields, export_graph, licence_fields, run_onnx, write_card
 from motion_style_ros.training.loop import CHECKPOINTS
 
@@ -210,7 +210,7 @@ def train(
     optimizer = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
 
     checkpoints.mkdir(parents=True, exist_ok=True)
-    ckpt_path = checkpoints / f"{Path(judge_file(cfg.kind, cfg.panel)).stem}_seed{cfg.seed}.pt"
+    ckpt_path = checkpoints / f"{Path(judge_file(cfg.kind, cfg.panel)).stem}{data_tag(cfg.data)}_seed{cfg.seed}.pt"
     state = {"epoch": -1, "best": None, "history": [], "train_seconds": 0.0}
     earlier = 0.0
     if ckpt_path.exists():

@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.training import hardware
-from motion_style_ros.training.data import Data, DataConfig
+from motion_style_ros.training.data import Data, DataConfig, data_tag
 
 CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
 PROGRESS_INTERVAL = 0.1 if sys.stderr.isatty() else 30.0  # progress lines in a log file: one per 30 s
@@ -59,7 +59,7 @@ class ResumableTrainer(ABC):
             raise MotionStyleError(f"batch {cfg.batch} does not split over {self.world} processes")
         self.cfg, self.data, self.progress = cfg, data, progress and self.rank == 0
         self.device = device or torch.device("cpu")
-        self.dir = self.folder(checkpoints, cfg.seed)
+        self.dir = self.folder(checkpoints, cfg.seed, cfg.data)
         self.state = {"iteration": 0, "train_seconds": 0.0, "val": []}
 
     def shard(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...]:
@@ -92,9 +92,9 @@ class ResumableTrainer(ABC):
         """Figures on fixed val windows (logged every ``val_every`` iterations and at the end)."""
 
     @classmethod
-    def folder(cls, checkpoints: Path, seed: int) -> Path:
-        """Where the run of ``seed`` keeps its checkpoint and log."""
-        return checkpoints / f"{cls.FOLDER}_{seed}"
+    def folder(cls, checkpoints: Path, seed: int, data: str = "") -> Path:
+        """Where the run of ``seed`` (on the user's folder ``data``) keeps its checkpoint and log."""
+        return checkpoints / f"{cls.FOLDER}{data_tag(data)}_{seed}"
 
     @property
     def checkpoint(self) -> Path:

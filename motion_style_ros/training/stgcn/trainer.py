@@ -299,7 +299,8 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
             data = data or load_for(cfg, progress and not hardware.rank())
         trainer = Trainer.started(cfg, data, checkpoints, progress, resume, where)
         if init_from is not None and trainer.state["iteration"] == 0:
-            trainer.initialise(Trainer.folder(checkpoints, init_from) / "checkpoint.pt", Trainer.NETWORK_SETTINGS)
+            trainer.initialise(Trainer.folder(checkpoints, init_from, cfg.data) / "checkpoint.pt",
+                               Trainer.NETWORK_SETTINGS)
             if not trainer.rank:
                 print(f"continuing seed {init_from}'s run at iteration {trainer.state['iteration']}")
         setup_s = time.perf_counter() - started
