@@ -1,8 +1,11 @@
 """Training loops, ONNX export and model cards (torch), by concept:
 
-- :mod:`.data`: Bandai takes as feature clips, their augmentation, windows and normalisation;
+- :mod:`.data`: Bandai takes (or a user's labelled BVH folder) as feature clips, their
+  augmentation, windows and normalisation;
 - :mod:`.losses`: differentiable kinematics and the reconstruction losses of the stylizers;
-- :mod:`.loop`: the resumable training loop (checkpoints, budget, log) every stylizer trainer runs;
+- :mod:`.loop`: the resumable training loop (checkpoints, budget, log) every stylizer trainer runs,
+  on any device and data-parallel under ``torchrun``;
+- :mod:`.hardware`: the device (``--device``), the process group, mixed precision;
 - :mod:`.export`: ONNX export under the model contract's names, shared card fields, model writing;
 - one package per stylizer with only its own parts, a ``trainer`` (config, networks, step,
   validation, ``train``) and an ``export`` (graphs, parity, card, a random stand-in for tests):
