@@ -53,6 +53,8 @@ def processes() -> int:
 def start(where: torch.device) -> None:
     """Join the process group when started by ``torchrun`` with more than one process."""
     if processes() > 1 and not dist.is_initialized():
+        if where.type == "mps":
+            raise MotionStyleError("--device mps trains in one process: torchrun needs CUDA (NCCL) or the CPU (gloo)")
         if where.type == "cuda":
             torch.cuda.set_device(where)
         dist.init_process_group("nccl" if where.type == "cuda" else "gloo")
