@@ -12,9 +12,9 @@ DATASETS = ("bandai-1", "bandai-2", "cmu", "xia")
 
 def add_parser(subparsers):
     p = subparsers.add_parser(
-        "data", help="index datasets, build the Bandai cache, check the split",
-        description="Index the motion datasets, build the Bandai cache, check or rewrite the "
-                    "committed train/val/test split.",
+        "data", help="index datasets or your own BVH folder, build the cache, check the split",
+        description="Index the motion datasets or a labelled BVH folder of your own, build their "
+                    "cache, check or rewrite the committed train/val/test split.",
     )
     actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     index = actions.add_parser("index", help="count clips per content, style and split",
@@ -53,15 +53,21 @@ def add_parser(subparsers):
 
 def _dataset(value: str) -> str:
     """A dataset name, or the path of an existing folder (argparse type: a bad one is one line)."""
-    return value if value in DATASETS else _folder(value)
+    import argparse
+    from pathlib import Path
+
+    if value not in DATASETS and not Path(value).is_dir():
+        raise argparse.ArgumentTypeError(f"{value}: not {' or '.join(DATASETS)}, nor a folder")
+    return value
 
 
 def _folder(value: str) -> str:
+    """The path of an existing folder (argparse type)."""
     import argparse
     from pathlib import Path
 
     if not Path(value).is_dir():
-        raise argparse.ArgumentTypeError(f"{value}: not {' or '.join(DATASETS)}, nor a folder")
+        raise argparse.ArgumentTypeError(f"{value}: not a folder")
     return value
 
 
