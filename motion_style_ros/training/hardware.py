@@ -11,6 +11,7 @@ on the GPU). None of it is measured here: this machine has no GPU."""
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 from collections.abc import Iterator
 
@@ -58,6 +59,8 @@ def start(where: torch.device) -> None:
         if where.type == "cuda":
             torch.cuda.set_device(where)
         dist.init_process_group("nccl" if where.type == "cuda" else "gloo")
+        if rank():  # the skipped-file warnings and the like: once, from rank 0
+            logging.getLogger("motion_style_ros").setLevel(logging.ERROR)
 
 
 def stop() -> None:
