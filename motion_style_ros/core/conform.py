@@ -24,6 +24,8 @@ at the training data's height; :class:`StreamGround` does the same causally for 
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
@@ -67,10 +69,15 @@ def arms_hang(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     """``(..., 2)``: whether each arm (left, right) hangs, its upper arm within :data:`HANG_DEGREES`
     of straight down, from global joint positions ``(..., J, 3)``. Rolls are estimated on these
     frames only: how a raised or waving arm's frames turn says more about the motion than the rig."""
-    upper = positions[..., [skeleton.index(f"UpperArm_{s}") for s in "LR"], :]
-    lower = positions[..., [skeleton.index(f"LowerArm_{s}") for s in "LR"], :]
-    bone = lower - upper
+    upper, lower = _arm_bones(skeleton)
+    bone = positions[..., lower, :] - positions[..., upper, :]
     return -bone[..., 1] > np.cos(np.radians(HANG_DEGREES)) * np.maximum(rot.norm(bone), 1e-9)
+
+
+@functools.cache
+def _arm_bones(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+    """The upper and lower arm joints (left, right), looked up once per skeleton."""
+    return tuple(np.array([skeleton.index(f"{j}_{s}") for s in "LR"]) for j in ("UpperArm", "LowerArm"))
 
 
 def planted_ankle_height(motion: Motion) -> float:
@@ -130,16 +137,25 @@ class RollModel:
         mean, std = stats["mean"][joints], stats["std"][joints]  # (8, 6)
         g = linear[None] / std[:, None, None, :, None]  # (8, A, B, 6, 9)
         centre = mean / std
-        self.quadratic = np.einsum("jabki,jabkl->jabil", g, g).reshape(len(joints), steps, steps, 81)
-        self.linear = np.einsum("jabki,jk->jabi", g, centre)
+        quadratic = np.einsum("jabki,jabkl->jabil", g, g).reshape(len(joints), steps, steps, 81)
+        linear = np.einsum("jabki,jk->jabi", g, centre)
+        # A cost is of degree 2 in (cos, sin) of each angle: on the grid it is exactly
+        # basis @ coefficients @ basis.T with 5 x 5 coefficients linear in the moments. Solving
+        # from those reads 8 x 25 x 90 numbers instead of the grid's 8 x 72 x 72 x 90 (27 MB per
+        # solve, 1.4 ms, every 3rd model frame of a stream's first 2 s).
+        self.basis = np.stack([np.ones(steps), c, s, np.cos(2 * self.angles), np.sin(2 * self.angles)], axis=1)
+        project = np.linalg.pinv(self.basis)  # (5, A): the columns are orthogonal on the grid
+        tables = np.concatenate([quadratic, -2.0 * linear], axis=-1).transpose(0, 3, 1, 2)  # (8, 90, A, B)
+        self.coefficients = (project @ tables @ project.T).reshape(len(joints), 90, 25).swapaxes(1, 2)
         self.constant = np.square(centre).sum(axis=-1)
 
     def costs(self, second: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:
         """``(P, 8, A, B)``: each arm joint's cost at every roll pair, from the moments
         ``second`` ``(P, 8, 9, 9)``, ``first`` ``(P, 8, 9)`` and frame counts ``(P, 8)``."""
-        p = second.shape[0]
-        return (np.einsum("jabx,pjx->pjab", self.quadratic, second.reshape(p, -1, 81))
-                - 2.0 * np.einsum("jabx,pjx->pjab", self.linear, first)
+        p, n = second.shape[:2]
+        moments = np.concatenate([second.reshape(p, n, 81), first], axis=-1)[..., None]
+        coefficients = (self.coefficients @ moments).reshape(p, n, 5, 5)
+        return (self.basis @ coefficients @ self.basis.T
                 + count[:, :, None, None] * self.constant[None, :, None, None])
 
     def solve(self, second: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:
@@ -148,33 +164,31 @@ class RollModel:
         chest, keeps its frame), each chain's scaled by how clearly it beats no rolls at all
         (:data:`ROLL_EVIDENCE`)."""
         costs = self.costs(second, first, count)
-        n = len(CHAINS[0])
-        angles = np.zeros(costs.shape[:2])
-        for c in range(len(CHAINS)):
-            chain = costs[:, c * n:(c + 1) * n]
-            total = chain[:, 0, 0]  # (P, B)
-            back = []
-            for k in range(1, n):
-                candidates = total[:, :, None] + chain[:, k]  # (P, A, B)
-                back.append(np.argmin(candidates, axis=1))
-                total = candidates.min(axis=1)
-            choice = np.zeros((len(chain), n), dtype=int)
-            choice[:, -1] = np.argmin(total, axis=1)
-            for k in range(n - 1, 0, -1):
-                choice[:, k - 1] = np.take_along_axis(back[k - 1], choice[:, k, None], axis=1)[:, 0]
-            offset = self._refine(chain, choice)
-            unrolled = chain[:, :, 0, 0].sum(axis=1)
-            frames = count[:, c * n]
-            gain = (unrolled - total.min(axis=1)) / np.maximum(frames, 1)
-            low, high = ROLL_EVIDENCE
-            low = np.where(frames >= ROLL_SURE_FRAMES, low, high - 1e-6)
-            weight = np.clip((gain - low) / (high - low), 0.0, 1.0) * (frames >= ROLL_MIN_FRAMES)
-            step = self.angles[1]
-            rolls = np.angle(np.exp(1j * (self.angles[choice] + offset * step)))  # the short way
-            angles[:, c * n:(c + 1) * n] = weight[:, None] * rolls
+        p, n, c = len(costs), len(CHAINS[0]), len(CHAINS)
+        chain = costs.reshape((p * c, n) + costs.shape[2:])  # both chains of every performer at once
+        total = chain[:, 0, 0]  # (P * C, B)
+        back = []
+        for k in range(1, n):
+            candidates = total[:, :, None] + chain[:, k]  # (P * C, A, B)
+            back.append(np.argmin(candidates, axis=1))
+            total = candidates.min(axis=1)
+        choice = np.zeros((len(chain), n), dtype=int)
+        choice[:, -1] = np.argmin(total, axis=1)
+        rows = np.arange(len(chain))
+        for k in range(n - 1, 0, -1):
+            choice[:, k - 1] = back[k - 1][rows, choice[:, k]]
+        offset = self._refine(chain, choice)
+        unrolled = chain[:, :, 0, 0].sum(axis=1)
+        frames = count[:, ::n].reshape(-1)
+        gain = (unrolled - total.min(axis=1)) / np.maximum(frames, 1)
+        low, high = ROLL_EVIDENCE
+        low = np.where(frames >= ROLL_SURE_FRAMES, low, high - 1e-6)
+        weight = np.clip((gain - low) / (high - low), 0.0, 1.0) * (frames >= ROLL_MIN_FRAMES)
+        step = self.angles[1]
+        rolls = np.angle(np.exp(1j * (self.angles[choice] + offset * step)))  # the short way
+        angles = (weight[:, None] * rolls).reshape(p, c * n)
         angles[:, [ARM_JOINTS.index(j) for j in UNROLLED]] = 0.0  # solved for, not applied
         return angles
-
 
     @staticmethod
     def _refine(chain: np.ndarray, choice: np.ndarray) -> np.ndarray:
@@ -183,16 +197,12 @@ class RollModel:
         rolls held: a live estimate and a whole clip's then differ by less than a grid step."""
         p, n = choice.shape
         steps = chain.shape[-1]
-        rows = np.arange(p)
-        values = np.zeros((p, n, 3))
-        for k in range(n):
-            for i, d in enumerate((-1, 0, 1)):
-                b = (choice[:, k] + d) % steps
-                a = choice[:, k - 1] if k else np.zeros(p, dtype=int)
-                f = chain[rows, k, a, b]
-                if k + 1 < n:
-                    f = f + chain[rows, k + 1, b, choice[:, k + 1]]
-                values[:, k, i] = f
+        rows, joints = np.arange(p)[:, None, None], np.arange(n)[None, :, None]
+        parent = np.concatenate([np.zeros((p, 1), dtype=int), choice[:, :-1]], axis=1)[..., None]
+        child = np.concatenate([choice[:, 1:], choice[:, -1:]], axis=1)[..., None]
+        b = (choice[..., None] + np.array([-1, 0, 1])) % steps  # (p, n, 3): the grid roll and beside it
+        values = chain[rows, joints, parent, b] + np.where(
+            joints < n - 1, chain[rows, np.minimum(joints + 1, n - 1), b, child], 0.0)
         curve = values[..., 0] - 2.0 * values[..., 1] + values[..., 2]
         offset = 0.5 * (values[..., 0] - values[..., 2]) / np.where(curve > 1e-12, curve, np.inf)
         return np.clip(offset, -0.5, 0.5)
@@ -217,8 +227,8 @@ def arm_moments(rotations: np.ndarray, hang: np.ndarray, joints: list[int]
     q = rotations[..., joints, :]
     v = rot.to_matrix(q).reshape(q.shape[:-1] + (9,))  # (T, ..., 8, 9)
     w = np.repeat(hang, len(CHAINS[0]), axis=-1).astype(np.float64)  # (T, ..., 8)
-    return (np.einsum("t...j,t...ji,t...jk->...jik", w, v, v), np.einsum("t...j,t...ji->...ji", w, v),
-            w.sum(axis=0))
+    weighted = np.moveaxis(w[..., None] * v, 0, -1)  # (..., 8, 9, T): sums over time as products
+    return weighted @ np.moveaxis(v, 0, -2), np.add.reduce(weighted, axis=-1), w.sum(axis=0)
 
 
 def roll_quaternions(angles: np.ndarray) -> np.ndarray:

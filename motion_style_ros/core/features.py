@@ -27,12 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.motion import Motion, forward_kinematics
+from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
 
 FEATURE_VERSION = 1
 UP = np.array([0.0, 1.0, 0.0])
+_GROUND = np.array([1.0, 0.0, 1.0])  # a position's ground point: (x, 0, z)
 
 # Contact: foot joint within this height of the floor (m) and slower than CONTACT_SPEED (m/s).
 CONTACT_HEIGHT = {"Foot_L": 0.16, "Foot_R": 0.16, "Toes_L": 0.08, "Toes_R": 0.08}
@@ -162,8 +163,8 @@ def _encode_frames(
     joints = lay.index
     n = len(joints)
     inv_face = rot.conjugate(rot.from_yaw(yaw))  # (..., 4)
-    ground = g_pos[..., sk.pelvis, :] * np.array([1.0, 0.0, 1.0])
-    prev_ground = prev_g_pos[..., sk.pelvis, :] * np.array([1.0, 0.0, 1.0])
+    ground = g_pos[..., sk.pelvis, :] * _GROUND
+    prev_ground = prev_g_pos[..., sk.pelvis, :] * _GROUND
     # Everything that turns into the facing frame, in one call: ground velocity, joint positions
     # relative to the ground point, joint velocities.
     world = np.concatenate([((ground - prev_ground) * fps)[..., None, :],
@@ -173,9 +174,10 @@ def _encode_frames(
 
     out = np.empty(yaw.shape + (lay.size,), dtype=np.float32)
     yaw_rate = wrap_angle(yaw - prev_yaw) * fps
-    out[..., lay.slices["root"]] = np.stack(
-        [facing[..., 0, 0], facing[..., 0, 2], g_pos[..., sk.pelvis, 1], yaw_rate], axis=-1
-    )
+    root = lay.slices["root"].start
+    out[..., root:root + 2] = facing[..., 0, ::2]
+    out[..., root + 2] = g_pos[..., sk.pelvis, 1]
+    out[..., root + 3] = yaw_rate
 
     local = rotations[..., joints, :].copy()
     local[..., 0, :] = rot.multiply(inv_face, pelvis_rot)  # pelvis relative to facing
@@ -247,7 +249,7 @@ def decode(
     yaw = np.cumsum(np.concatenate([[start_yaw], root[1:, 3] / fps]))
     start = np.zeros(3) if start_ground is None else np.asarray(start_ground, dtype=np.float64)
     steps = _ground_step(root[1:], yaw[1:], fps)
-    ground = np.cumsum(np.concatenate([start[None] * np.array([1.0, 0.0, 1.0]), steps]), axis=0)
+    ground = np.cumsum(np.concatenate([start[None] * _GROUND, steps]), axis=0)
     rotations, root_pos = _pose(sk, lay, f, yaw, ground)
     return Motion.from_rotations(sk, rotations, root_pos, fps)
 
@@ -276,9 +278,7 @@ class StreamEncoder:
         """``(P, F)`` float32 features of one frame: local rotations ``(P, J, 4)`` and pelvis
         positions ``(P, 3)`` (the translation of the pelvis in its parent's frame)."""
         sk = self.skeleton
-        positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
-        positions[:, sk.pelvis] = root_positions
-        g_rot, g_pos = forward_kinematics(sk, rotations, positions, joints=[sk.pelvis])
+        g_rot, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, root_positions), joints=[sk.pelvis])
         yaw = facing_yaw(g_pos, sk)
         previous = np.where(self._fresh[:, None, None], g_pos, self._last)
         prev_yaw = np.where(self._fresh, yaw, self._yaw)
@@ -295,7 +295,7 @@ class StreamEncoder:
     def facing(self) -> tuple[np.ndarray, np.ndarray]:
         """Ground point ``(P, 3)`` (x, 0, z) and heading ``(P,)`` of each performer's last frame:
         where a :class:`StreamDecoder` starts to follow that performer."""
-        ground = self._last[:, self.skeleton.pelvis] * np.array([1.0, 0.0, 1.0])
+        ground = self._last[:, self.skeleton.pelvis] * _GROUND
         return ground, self._yaw.copy()
 
 
@@ -319,7 +319,7 @@ class StreamDecoder:
         heading ``yaw`` (``decode``'s ``start_ground``, ``start_yaw``). ``ground`` ``(P, 3)`` and
         ``yaw`` ``(P,)`` hold every performer; only the selected ones are used."""
         which = slice(None) if which is None else which
-        self._ground[which] = (np.asarray(ground, dtype=np.float64) * np.array([1.0, 0.0, 1.0]))[which]
+        self._ground[which] = (np.asarray(ground, dtype=np.float64) * _GROUND)[which]
         self._yaw[which] = np.asarray(yaw, dtype=np.float64)[which]
         self._fresh[which] = True
 
@@ -327,14 +327,14 @@ class StreamDecoder:
         """Move every performer's ground point and heading the fraction ``gain`` of the way towards
         ``ground`` and ``yaw`` (bounds the drift of an integrated trajectory from a live one)."""
         go = ~self._fresh
-        target = np.asarray(ground, dtype=np.float64)[go] * np.array([1.0, 0.0, 1.0])
+        target = np.asarray(ground, dtype=np.float64)[go] * _GROUND
         self._ground[go] += gain * (target - self._ground[go])
         self._yaw[go] += gain * wrap_angle(np.asarray(yaw)[go] - self._yaw[go])
 
     def move(self, offset: np.ndarray) -> None:
         """Move every performer's ground point by ``offset`` ``(P, 3)`` (its horizontal part): the
         trajectory goes on from where a correction of the last frame's root put it."""
-        self._ground += np.asarray(offset, dtype=np.float64) * np.array([1.0, 0.0, 1.0])
+        self._ground += np.asarray(offset, dtype=np.float64) * _GROUND
 
     def __call__(self, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Local rotations ``(P, J, 4)`` and pelvis positions ``(P, 3)`` of one frame of features

@@ -35,7 +35,7 @@ import numpy as np
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.core.features import CONTACT_HEIGHT, Mask, wrap_angle
-from motion_style_ros.core.motion import forward_kinematics
+from motion_style_ros.core.motion import forward_kinematics, rest_positions
 from motion_style_ros.core.skeleton import Skeleton, canonical
 
 LEGS = (("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R"))
@@ -45,6 +45,7 @@ GLIDE = 0.5  # a new lock follows this much of the stylizer's ankle motion, then
 _NEAR = 1e-6  # m: a goal this close to the ankle leaves the leg as it is
 ANCHOR_EASE = 0.3  # the fraction of the way to the wanted hold-back the root goes each frame
 DOWN = 0.08  # m: a stylized ankle this far above the contact height is still down (on its toes)
+_SIDES = np.tile([0, 1], 3)  # the leg (left, right) of each joint of the chain: hips, knees, ankles
 
 
 class FootLock:
@@ -110,9 +111,7 @@ class FootLock:
         ``input_ankles`` ``(P, 2, 3)``: world positions of the input's ankles (:attr:`ankles`) in
         the frame the output was made from."""
         sk = self.skeleton
-        positions = np.broadcast_to(sk.offsets, rotations.shape[:-1] + (3,)).copy()
-        positions[:, sk.pelvis] = root_positions
-        g_rot, g_pos = forward_kinematics(sk, rotations, positions, self._legs)
+        g_rot, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, root_positions), self._legs)
         hip, knee, ankle = g_pos[:, self._hip], g_pos[:, self._knee], g_pos[:, self._ankle]
         speed = rot.norm(input_ankles - self._last) * self.fps  # NaN on a first frame
         self._last = input_ankles
@@ -167,7 +166,7 @@ class FootLock:
         local = rot.multiply(rot.conjugate(np.concatenate([parent, g_upper, g_lower], axis=1)),
                              np.concatenate([g_upper, g_lower, g_foot], axis=1))
         out = rotations.copy()
-        out[:, self._chain] = np.where(np.tile(moved, 3)[..., None], local, out[:, self._chain])
+        out[:, self._chain] = np.where(moved[:, _SIDES, None], local, out[:, self._chain])
         return out, root
 
     def _anchor(self, ahead: np.ndarray, ankle: np.ndarray, root: np.ndarray) -> np.ndarray:

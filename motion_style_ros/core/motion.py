@@ -82,6 +82,16 @@ class Motion:
         return cls(skeleton, rotations, positions, fps)
 
 
+def rest_positions(skeleton: Skeleton, root_positions: np.ndarray) -> np.ndarray:
+    """Local translations ``(P, J, 3)``: every joint's rest offset, the pelvis at
+    ``root_positions`` ``(P, 3)`` (what forward kinematics of a streamed frame takes; cheaper
+    than broadcasting the offsets and copying)."""
+    positions = np.empty(root_positions.shape[:-1] + skeleton.offsets.shape)
+    positions[...] = skeleton.offsets
+    positions[..., skeleton.pelvis, :] = root_positions
+    return positions
+
+
 # Up to this many poses, forward kinematics composes 4x4 transforms by pointer doubling: a handful
 # of numpy calls (what a streamed frame costs); above it, quaternions level by level (fewer
 # operations per pose, faster on clips).
@@ -97,12 +107,10 @@ def forward_kinematics(
     if rotations[..., 0, 0].size <= _MATRIX_FK_POSES:
         # Each joint's transform relative to an ancestor that doubles its distance every round:
         # T_j <- T_a(j) @ T_j, a(j) <- a(a(j)); joint J is the world (identity).
-        lead = rotations.shape[:-2]
-        t = np.zeros(lead + (rotations.shape[-2] + 1, 4, 4))
+        t = np.empty(rotations.shape[:-2] + (rotations.shape[-2] + 1, 4, 4))
+        t[...] = _template(rotations.shape[-2])  # the bottom rows; the world's identity
         t[..., :-1, :3, :3] = rot.to_matrix(rotations)
         t[..., :-1, :3, 3] = positions
-        t[..., -1, :, :] = np.eye(4)
-        t[..., :-1, 3, 3] = 1.0
         for ancestors in _doubling(skeleton.parents):
             t = t[..., ancestors, :, :] @ t
         g_pos = t[..., :-1, :3, 3].copy()  # contiguous: what callers compute with next
@@ -118,6 +126,16 @@ def forward_kinematics(
             g_rot[..., parents, :], positions[..., level, :]
         )
     return (g_rot if joints is None else g_rot[..., joints, :]), g_pos
+
+
+@functools.cache
+def _template(joints: int) -> np.ndarray:
+    """``(joints + 1, 4, 4)``: what forward kinematics' transforms hold before a pose is filled in
+    (the bottom row ``0 0 0 1``; the extra last one, the world, the identity)."""
+    t = np.zeros((joints + 1, 4, 4))
+    t[:, 3, 3] = 1.0
+    t[-1] = np.eye(4)
+    return t
 
 
 @functools.cache

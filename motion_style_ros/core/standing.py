@@ -29,9 +29,9 @@ class Standing:
                  hold_seconds: float = 0.5, ease_seconds: float = 0.3) -> None:
         sk = skeleton or canonical()
         contact = feature_layout(sk).slices["contact"]
-        columns = np.arange(contact.start, contact.stop)
-        side = np.array([sk.names[j].endswith("_L") for j in sk.feet])
-        self._left, self._right = columns[side], columns[~side]
+        self._contact = contact
+        left = np.array([sk.names[j].endswith("_L") for j in sk.feet])
+        self._sides = np.stack([left, ~left], axis=1).astype(np.float64)  # (feet, 2): which side each is
         self._frame = 1.0 / float(fps)
         self.hold_seconds = hold_seconds
         self._ease = self._frame / max(ease_seconds, self._frame)  # weight gained or lost per frame
@@ -46,10 +46,11 @@ class Standing:
     def __call__(self, output: np.ndarray, features: np.ndarray) -> np.ndarray:
         """The model's output frame ``(P, >= 4)`` (root block first) with the root motion of
         standing performers eased into that of the input frame's ``features`` ``(P, F)``."""
-        down = (features[:, self._left] > 0.5).any(axis=1) & (features[:, self._right] > 0.5).any(axis=1)
+        feet_down = (features[:, self._contact] > 0.5) @ self._sides  # (P, 2): feet down per side
+        down = np.minimum.reduce(feet_down, axis=1) > 0.0
         self._still = np.where(down, self._still + self._frame, 0.0)
         target = self._still >= self.hold_seconds - 1e-9
-        self._weight = np.clip(self._weight + np.where(target, self._ease, -self._ease), 0.0, 1.0)
+        self._weight = np.minimum(np.maximum(self._weight + np.where(target, self._ease, -self._ease), 0.0), 1.0)
         if not self._weight.any():
             return output
         out = np.array(output, dtype=np.float64)

@@ -62,7 +62,7 @@ from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.conform import ANKLES, ROLL_MIN_FRAMES, StreamGround, StreamRolls, conform_rolls
 from motion_style_ros.core.features import UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
-from motion_style_ros.core.motion import Motion, forward_kinematics
+from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
 from motion_style_ros.core.proportions import CONTACTS, StreamScale, clip_scale
 from motion_style_ros.core.resample import Hermite, resample
 from motion_style_ros.core.skeleton import canonical
@@ -358,9 +358,7 @@ class StreamSession:
         lift = np.zeros((self.performers, 3))
         if self._ground is not None:
             if fresh.any():
-                positions = np.broadcast_to(self.skeleton.offsets, q.shape[:-1] + (3,)).copy()
-                positions[:, self.skeleton.pelvis] = p
-                _, g_pos = forward_kinematics(self.skeleton, q, positions, joints=[])
+                _, g_pos = forward_kinematics(self.skeleton, q, rest_positions(self.skeleton, p), joints=[])
                 self._ground.start(g_pos[:, self._ankle_joints], fresh)
             lift = self._ground.offset[:, None] * UP
         features = self._encoder(conformed, p - lift)
@@ -428,15 +426,15 @@ class StreamSession:
                 f"{np.shape(root_positions)}; expected ({n}, {j}, 4) local quaternions (w, x, y, z) "
                 f"of the canonical skeleton's {j} joints and ({n}, 3) pelvis positions"
             )
-        bad = ~(np.isfinite(q).all(axis=(1, 2)) & np.isfinite(p).all(axis=1))
-        if bad.any():
+        if not (np.isfinite(q).all() and np.isfinite(p).all()):
+            bad = ~(np.isfinite(q).all(axis=(1, 2)) & np.isfinite(p).all(axis=1))
             raise MotionStyleError(
                 f"performer {int(np.argmax(bad))}: NaN or infinite values in the frame"
             )
         q, p = q.astype(np.float64), p.astype(np.float64)
         norm = rot.norm(q)
-        off = np.abs(norm - 1.0) > QUATERNION_TOLERANCE
-        if off.any():
+        if np.abs(norm - 1.0).max() > QUATERNION_TOLERANCE:
+            off = np.abs(norm - 1.0) > QUATERNION_TOLERANCE
             k, joint = np.argwhere(off)[0]
             raise MotionStyleError(
                 f"performer {k}: rotation of {self.skeleton.names[joint]} has norm "
