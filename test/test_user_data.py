@@ -290,3 +290,41 @@ def test_torchrun_with_gloo_follows_one_process_with_the_whole_batch_and_resumes
     agree(resumed, continued)
     assert (tmp_path / "two" / "models" / exported).is_file()
     assert not (tmp_path / "two" / f"{model}_0").exists()  # a Bandai run's checkpoint folder
+
+
+_JUDGE = """
+import json
+import sys
+from pathlib import Path
+
+from motion_style_ros.training import judges
+
+folder, where, epochs = sys.argv[1:]
+cfg = judges.Config(kind="style", data=folder, epochs=int(epochs), crops_per_epoch=64, batch=16, dropout=0.0)
+card = judges.train(cfg, Path(where), checkpoints=Path(where), threads=1, progress=False, device="cpu")
+if card is not None:
+    Path(where, "history.json").write_text(json.dumps(card["training"]["history"]))
+"""
+
+
+def test_torchrun_trains_a_judge_as_one_process_does(folder, tmp_path, env, torch):
+    """2 processes of 8 crops against 1 of 16 (no dropout: its masks are drawn per process), 2
+    epochs: the same train and val losses (1e-5), one export; the checkpoint continued in one process."""
+    script = tmp_path / "judge.py"
+    script.write_text(textwrap.dedent(_JUDGE))
+    env = {**env, "OMP_NUM_THREADS": "1"}
+
+    def train(where, epochs, processes=1, printed=2):
+        launch = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node",
+                  str(processes)] if processes > 1 else [sys.executable]
+        out = subprocess.run([*launch, str(script), str(folder), str(where), str(epochs)], check=False,
+                             capture_output=True, text=True, env=env, timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        assert out.stdout.count("style epoch") == printed  # by rank 0 only
+        return json.loads((where / "history.json").read_text())
+
+    both, one = train(tmp_path / "two", 2, processes=2), train(tmp_path / "one", 2)
+    assert len(both) == len(one) == 2
+    for a, b in zip(both, one):
+        assert abs(a["train_loss"] - b["train_loss"]) < 1e-5 and abs(a["val_loss"] - b["val_loss"]) < 1e-5
+    assert [e["epoch"] for e in train(tmp_path / "two", 3, printed=1)] == [1, 2, 3]  # resumed after epoch 2

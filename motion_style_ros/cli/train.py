@@ -184,21 +184,29 @@ def run_judges(args) -> int:
     if args.epochs is not None and args.epochs < 1:
         raise MotionStyleError(f"--epochs must be at least 1, got {args.epochs}")
     out = _output(args)
-    _training("hardware").device(args.device)  # a missing device fails before the data loads
+    hardware = _training("hardware")
     changes = {k: v for k, v in (("epochs", args.epochs), ("seed", args.seed)) if v is not None}
     changes["data"] = args.data or ""
-    clips = judges.encode_clips(folder=changes["data"])
-    for panel in (1, 2) if args.panel == "both" else (int(args.panel),):
-        for kind in KINDS if args.kind == "both" else (args.kind,):
-            cfg = (judges.Config(kind=kind, **changes) if panel == 1
-                   else judges.second_panel(kind, **changes))
-            card = judges.train(cfg, out, clips, threads=args.threads, device=args.device, licence=args.licence)
-            acc = card["accuracy"]
-            print(f"{card['name']}: test accuracy {acc['test_clip']:.3f} per clip "
-                  f"({acc['test_clips']} clips), {acc['test_window']:.3f} per "
-                  f"{acc['test_window_frames']}-frame window; {card['training']['wall_time_s']:.0f} s "
-                  f"-> {out / card['name']}.onnx")
+    with hardware.session(args.threads, args.device):  # one device and process group for every judge
+        with hardware.rank_zero_first():
+            clips = judges.encode_clips(not hardware.rank(), changes["data"])
+        for panel in (1, 2) if args.panel == "both" else (int(args.panel),):
+            for kind in KINDS if args.kind == "both" else (args.kind,):
+                cfg = (judges.Config(kind=kind, **changes) if panel == 1
+                       else judges.second_panel(kind, **changes))
+                _report_judge(judges.train(cfg, out, clips, threads=args.threads, device=args.device,
+                                           licence=args.licence), out)
     return 0
+
+
+def _report_judge(card: dict | None, out) -> None:
+    """A trained judge's figures (rank 0; None elsewhere under torchrun)."""
+    if card is not None:
+        acc = card["accuracy"]
+        print(f"{card['name']}: test accuracy {acc['test_clip']:.3f} per clip "
+              f"({acc['test_clips']} clips), {acc['test_window']:.3f} per "
+              f"{acc['test_window_frames']}-frame window; {card['training']['wall_time_s']:.0f} s "
+              f"-> {out / card['name']}.onnx")
 
 
 def run_recurrent(args) -> int:

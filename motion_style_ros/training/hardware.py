@@ -17,6 +17,8 @@ from collections.abc import Iterator
 
 import torch
 import torch.distributed as dist
+from torch import nn
+from torch.nn.parallel import DistributedDataParallel
 
 from motion_style_ros.errors import MotionStyleError
 
@@ -51,34 +53,33 @@ def processes() -> int:
     return int(os.environ.get("WORLD_SIZE", "1"))
 
 
-def start(where: torch.device) -> None:
-    """Join the process group when started by ``torchrun`` with more than one process."""
-    if processes() > 1 and not dist.is_initialized():
-        if where.type == "mps":
-            raise MotionStyleError("--device mps trains in one process: torchrun needs CUDA (NCCL) or the CPU (gloo)")
-        if where.type == "cuda":
-            torch.cuda.set_device(where)
-        dist.init_process_group("nccl" if where.type == "cuda" else "gloo")
-        if rank():  # the skipped-file warnings and the like: once, from rank 0
-            logging.getLogger("motion_style_ros").setLevel(logging.ERROR)
-
-
-def stop() -> None:
-    """Leave the process group (if :func:`start` joined one)."""
-    if dist.is_initialized():
-        dist.destroy_process_group()
+def _join(where: torch.device) -> bool:
+    """Join the process group when started by ``torchrun`` with more than one process (and not
+    in it yet); whether it joined."""
+    if processes() == 1 or dist.is_initialized():
+        return False
+    if where.type == "mps":
+        raise MotionStyleError("--device mps trains in one process: torchrun needs CUDA (NCCL) or the CPU (gloo)")
+    if where.type == "cuda":
+        torch.cuda.set_device(where)
+    dist.init_process_group("nccl" if where.type == "cuda" else "gloo")
+    if rank():  # the skipped-file warnings and the like: once, from rank 0
+        logging.getLogger("motion_style_ros").setLevel(logging.ERROR)
+    return True
 
 
 @contextlib.contextmanager
 def session(threads: int, name: str | None = None) -> Iterator[torch.device]:
-    """A training run's device (:func:`device`), CPU threads and, under ``torchrun``, process group."""
+    """A training run's device (:func:`device`), CPU threads and, under ``torchrun``, process group
+    (left at the end by the session that joined it: sessions nest)."""
     torch.set_num_threads(threads)
     where = device(name)
-    start(where)
+    joined = _join(where)
     try:
         yield where
     finally:
-        stop()
+        if joined:
+            dist.destroy_process_group()
 
 
 def rank() -> int:
@@ -87,6 +88,30 @@ def rank() -> int:
 
 def world() -> int:
     return dist.get_world_size() if dist.is_initialized() else 1
+
+
+def shard(where: torch.device, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...]:
+    """This process's share of a global batch (every process draws the same one), on its device."""
+    return tuple(t.chunk(world())[rank()].to(where) for t in tensors)
+
+
+def synced(module: nn.Module, where: torch.device, unused: bool = False) -> nn.Module:
+    """``module`` whose gradients ``DistributedDataParallel`` averages over the processes (itself
+    in one process); ``unused``: some of its parameters may get no gradient in a step."""
+    if world() == 1:
+        return module
+    return DistributedDataParallel(module, device_ids=[where] if where.type == "cuda" else None,
+                                   find_unused_parameters=unused)
+
+
+def mean_over_processes(value: torch.Tensor, where: torch.device) -> torch.Tensor:
+    """The mean of ``value`` over the processes (itself in one): a logged loss, or the normaliser
+    of a loss that is a ratio of sums over the batch."""
+    if world() == 1:
+        return value
+    total = value.detach().to(where, copy=True)  # NCCL reduces GPU tensors only
+    dist.all_reduce(total)
+    return (total / world()).to(value.device)
 
 
 @contextlib.contextmanager

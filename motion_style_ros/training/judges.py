@@ -110,7 +110,7 @@ def _crop(features: np.ndarray, start: int, length: int) -> np.ndarray:
     return np.pad(crop, ((missing // 2, missing - missing // 2), (0, 0)), mode="edge")
 
 
-def _batches(split: Split, cfg: Config, rng: np.random.Generator, where: torch.device):
+def _batches(split: Split, cfg: Config, rng: np.random.Generator):
     """Random crops of class-balanced random train clips, one crop length per batch."""
     counts = np.bincount(split.labels)
     weights = 1.0 / counts[split.labels]
@@ -120,7 +120,7 @@ def _batches(split: Split, cfg: Config, rng: np.random.Generator, where: torch.d
         idx = rng.choice(len(split.labels), size=cfg.batch, p=weights)
         starts = rng.integers(0, [max(len(split.features[i]) - length, 0) + 1 for i in idx])
         crops = [_crop(split.features[i], int(s), length) for i, s in zip(idx, starts)]
-        yield torch.from_numpy(np.stack(crops)).to(where), torch.from_numpy(split.labels[idx]).to(where)
+        yield torch.from_numpy(np.stack(crops)), torch.from_numpy(split.labels[idx])
 
 
 @torch.no_grad()
@@ -188,20 +188,42 @@ def train(
     progress: bool = True,
     device: str | None = None,
     licence: str | None = None,
-) -> dict:
+) -> dict | None:
     """Train one judge (resuming from its checkpoint, on any device) on ``device`` (default: the
-    best there is), export it to ``out_dir``; returns its card. One process: a judge trains in
-    minutes.
+    best there is; under ``torchrun``, data-parallel: every process draws the same batches and
+    trains on its share), export it to ``out_dir``; returns its card (None in the processes other
+    than rank 0, which export nothing).
 
     ``clips`` are :func:`encode_clips`' output, loaded here when not given.
     """
-    if hardware.processes() > 1:
-        raise MotionStyleError("the judges train in one process (minutes on a CPU): run without torchrun")
-    torch.set_num_threads(threads)
-    where = hardware.device(device)
     started = time.perf_counter()
-    clips = clips if clips is not None else encode_clips(progress, cfg.data)
-    labels, splits = make_splits(cfg.kind, clips)
+    with hardware.session(threads, device) as where:
+        rank = hardware.rank()
+        with hardware.rank_zero_first():
+            clips = clips if clips is not None else encode_clips(progress and not rank, cfg.data)
+        labels, splits = make_splits(cfg.kind, clips)
+        model, state, earlier = _fit(cfg, labels, splits, checkpoints, where, progress and not rank)
+    if rank:
+        return None
+    model.load_state_dict(state["best"]["model"])
+    model.cpu()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    onnx_path = out_dir / judge_file(cfg.kind, cfg.panel)
+    export_onnx(model, onnx_path)
+    card = _card(cfg, model, labels, splits, state, onnx_path, licence)
+    card["onnx_torch_max_abs_diff"], card["parity_probe_clips"] = parity(model, onnx_path, splits["test"].features[:4])
+    card["training"]["wall_time_s"] = round(earlier + time.perf_counter() - started, 1)
+    write_card(onnx_path, card)
+    return card
+
+
+def _fit(cfg: Config, labels: list[str], splits: dict[str, Split], checkpoints: Path, where: torch.device,
+         progress: bool) -> tuple[Judge, dict, float]:
+    """The judge trained for ``cfg.epochs`` (resuming from its checkpoint; only rank 0 prints and
+    writes it), its state (history, best epoch) and the seconds of the runs it resumed."""
+    rank = hardware.rank()
+    if cfg.batch % hardware.world():
+        raise MotionStyleError(f"batch {cfg.batch} does not split over {hardware.world()} processes")
     train_split = splits["train"]
     mean, std = normalisation(train_split.features, cfg.std_floor)
     torch.manual_seed(cfg.seed)  # initial weights
@@ -220,9 +242,11 @@ def train(
             optimizer.load_state_dict(saved["optimizer"])
             state = saved["state"]
             earlier = state["train_seconds"]  # spent by the runs this one resumes
-            print(f"resuming {ckpt_path} after epoch {state['epoch'] + 1}")
-        else:
+            if not rank:
+                print(f"resuming {ckpt_path} after epoch {state['epoch'] + 1}")
+        elif not rank:
             print(f"{ckpt_path} was made with other settings; starting afresh")
+    net = hardware.synced(model, where)
 
     for epoch in range(state["epoch"] + 1, cfg.epochs):
         t0 = time.perf_counter()
@@ -232,14 +256,15 @@ def train(
         model.train()
         losses = []
         bar = tqdm(
-            _batches(train_split, cfg, rng, where),
+            _batches(train_split, cfg, rng),
             total=cfg.crops_per_epoch // cfg.batch,
             desc=f"{cfg.kind} epoch {epoch + 1}/{cfg.epochs}",
             disable=not progress,
         )
         for x, y in bar:
+            x, y = hardware.shard(where, x, y)
             with hardware.autocast(where, safe=cfg.architecture == "cnn"):
-                logits, _ = model(x)
+                logits, _ = net(x)
             loss = F.cross_entropy(logits.float(), y, label_smoothing=cfg.label_smoothing)
             optimizer.zero_grad()
             loss.backward()
@@ -248,8 +273,9 @@ def train(
             bar.set_postfix(loss=f"{np.mean(losses[-20:]):.3f}")
         # The second panel never looks at the val takes: it keeps its last epoch.
         val_acc, val_loss = _scores(model, splits["val"]) if cfg.select else (None, None)
+        train_loss = float(hardware.mean_over_processes(torch.tensor(np.mean(losses)), where))
         state["history"].append({
-            "epoch": epoch + 1, "train_loss": float(np.mean(losses)),
+            "epoch": epoch + 1, "train_loss": train_loss,
             "val_accuracy": val_acc, "val_loss": val_loss,
         })
         best = state["best"]
@@ -262,7 +288,9 @@ def train(
             }
         state["epoch"] = epoch
         state["train_seconds"] += time.perf_counter() - t0
-        print(f"{cfg.kind} epoch {epoch + 1}: loss {np.mean(losses):.3f}"
+        if rank:
+            continue
+        print(f"{cfg.kind} epoch {epoch + 1}: loss {train_loss:.3f}"
               + (f", val accuracy {val_acc:.3f}" if cfg.select else ""))
         tmp = ckpt_path.with_suffix(".tmp")
         torch.save(
@@ -271,17 +299,7 @@ def train(
             tmp,
         )
         tmp.replace(ckpt_path)
-
-    model.load_state_dict(state["best"]["model"])
-    model.cpu()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    onnx_path = out_dir / judge_file(cfg.kind, cfg.panel)
-    export_onnx(model, onnx_path)
-    card = _card(cfg, model, labels, splits, state, onnx_path, licence)
-    card["onnx_torch_max_abs_diff"], card["parity_probe_clips"] = parity(model, onnx_path, splits["test"].features[:4])
-    card["training"]["wall_time_s"] = round(earlier + time.perf_counter() - started, 1)
-    write_card(onnx_path, card)
-    return card
+    return model, state, earlier
 
 
 def _card(

@@ -23,7 +23,6 @@ import numpy as np
 import torch
 import torch.distributed as dist
 from torch import nn
-from torch.nn.parallel import DistributedDataParallel
 from tqdm import tqdm
 
 from motion_style_ros.errors import MotionStyleError
@@ -63,25 +62,16 @@ class ResumableTrainer(ABC):
         self.state = {"iteration": 0, "train_seconds": 0.0, "val": []}
 
     def shard(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """This process's share of a global batch, on its device."""
-        return tuple(t.chunk(self.world)[self.rank].to(self.device) for t in tensors)
+        """This process's share of a global batch, on its device (:func:`hardware.shard`)."""
+        return hardware.shard(self.device, *tensors)
 
     def mean_over_processes(self, value: torch.Tensor) -> torch.Tensor:
-        """The mean of ``value`` over the processes (itself in one), e.g. the normaliser of a loss
-        that is a ratio of sums over the batch."""
-        if self.world == 1:
-            return value
-        total = value.detach().to(self.device, copy=True)  # NCCL reduces GPU tensors only
-        dist.all_reduce(total)
-        return (total / self.world).to(value.device)
+        """:func:`hardware.mean_over_processes` on this trainer's device."""
+        return hardware.mean_over_processes(value, self.device)
 
     def synced(self, module: nn.Module, unused: bool = False) -> nn.Module:
-        """``module`` whose gradients are averaged over the processes (itself in one process);
-        ``unused``: some of its parameters may get no gradient in a step."""
-        if self.world == 1:
-            return module
-        ids = [self.device] if self.device.type == "cuda" else None
-        return DistributedDataParallel(module, device_ids=ids, find_unused_parameters=unused)
+        """:func:`hardware.synced` on this trainer's device."""
+        return hardware.synced(module, self.device, unused)
 
     @abstractmethod
     def step(self, iteration: int) -> dict[str, float]:
