@@ -8,7 +8,7 @@ def add_parser(subparsers):
         "train", help="train models (needs torch)",
         description="Train a model on the Bandai Namco data (or a labelled BVH folder: --data) and "
                     "write it, with its model card, to models/ (or --out). Stopped runs resume from "
-                    "~/.cache/motion_style_ros/checkpoints/. The stylizers also train data-parallel "
+                    "~/.cache/motion_style_ros/checkpoints/. Every model also trains data-parallel "
                     "under torchrun (see docs/training.md).",
     )
     targets = p.add_subparsers(dest="target", metavar="TARGET", required=True)
