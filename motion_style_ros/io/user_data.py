@@ -72,6 +72,13 @@ def _skip(path: Path, problem: str) -> str:
     return message
 
 
+def folder_id(path: Path | str) -> str:
+    """``<folder name>-<hash of its absolute path>``: names the folder's cache entry and the
+    checkpoints of runs on it."""
+    folder = Path(path).resolve()
+    return f"{folder.name}-{hashlib.sha256(str(folder).encode()).hexdigest()[:8]}"
+
+
 def split_rule(position: int) -> str:
     """The split of the ``position``-th take (0-based, by file name) of a style."""
     r = position % 20
@@ -177,7 +184,7 @@ def load_folder(path: Path | str, progress: bool = True, rebuild: bool = False) 
     problems: list[str] = []
     labels = _labels(folder, files, problems)
     names = sorted(labels)
-    entry = f"user-{hashlib.sha256(str(folder).encode()).hexdigest()[:16]}.v{CACHE_VERSION}"
+    entry = f"user-{folder_id(folder)}.v{CACHE_VERSION}"
     arrays, built, fresh = cached_clips(entry, cache.source_key(folder / n for n in names),
                                         lambda: _build(folder, names, progress), rebuild)
     problems += built

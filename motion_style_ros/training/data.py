@@ -1,12 +1,12 @@
 """Training data for every trainer: Bandai takes (or a user's labelled BVH folder,
-:mod:`motion_style_ros.io.user_data`) as encoded feature clips with style and content indices, their augmentation (speeds, mirroring), windows drawn from them (of any style, or one of
-each style asked for) with the targets of a transfer, and the feature normalisation. Which takes
+:mod:`motion_style_ros.io.user_data`) as encoded feature clips with style and content indices,
+their augmentation (speeds, mirroring), windows drawn from them (of any style, or one of each style
+asked for) with the targets of a transfer, and the feature normalisation. Which takes
 and augmentations a run uses is its config's ``datasets`` (or ``data``), ``neutral``, ``speeds``,
 ``balance``, ``mirror`` and ``exclude`` fields (:class:`DataConfig`, :func:`load_for`)."""
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -19,7 +19,7 @@ from motion_style_ros.core.mirror import mirror as mirror_motion
 from motion_style_ros.core.resample import at_speed
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import BANDAI_FPS, index_bandai, load_bandai
-from motion_style_ros.io.user_data import MIN_TAKES, load_folder
+from motion_style_ros.io.user_data import MIN_TAKES, folder_id, load_folder
 
 NEUTRAL = "normal"
 USER_LICENCE = "as the user's data"  # a model trained on a user's folder, unless they state its licence
@@ -173,11 +173,8 @@ def load_for(cfg: DataConfig, progress: bool = True) -> Data:
 
 def data_tag(data: str) -> str:
     """What a run on a user's folder ``data`` adds to its checkpoint names, so that it never
-    replaces a Bandai run's checkpoint (nor another folder's): ``_<folder name>-<hash of its path>``."""
-    if not data:
-        return ""
-    folder = Path(data).resolve()
-    return f"_{folder.name}-{hashlib.sha256(str(folder).encode()).hexdigest()[:8]}"
+    replaces a Bandai run's checkpoint (nor another folder's)."""
+    return f"_{folder_id(data)}" if data else ""
 
 
 def recipe(cfg: DataConfig, licence: str | None = None) -> dict:
