@@ -62,7 +62,7 @@ def labelled(datasets, tmp_path_factory, env):
         rows.append(f"{source.name},{style},{content}")
     (root / "unlisted.bvh").symlink_to(_clips(datasets)[0][2])
     rows.append("gone.bvh,normal,walk")
-    (root / "labels.csv").write_text("\n".join(rows) + "\n")
+    (root / "labels.csv").write_text("\ufeff" + "\n".join(rows) + "\n")  # as a spreadsheet saves it
     return root
 
 

@@ -98,7 +98,7 @@ def _labels(folder: Path, files: list[Path], problems: list[str]) -> dict[str, t
                 problems.append(_skip(path, f"not in a style folder and there is no {LABELS}"))
         return labels
     try:
-        with open(table, newline="", encoding="utf-8") as f:
+        with open(table, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's BOM too
             rows = list(csv.DictReader(f))
     except (OSError, UnicodeDecodeError, csv.Error) as e:
         raise MotionStyleError(f"{table}: cannot read the labels ({e})") from None
