@@ -332,11 +332,12 @@ class StreamRolls:
         measured = np.zeros(len(live), dtype=bool)
         if not live.any():
             return measured
-        moments = arm_moments(rotations[live][None], arms_hang(positions[live], self.skeleton)[None],
+        some = slice(None) if live.all() else live  # a view, not a gather, in the usual case
+        moments = arm_moments(rotations[some][None], arms_hang(positions[some], self.skeleton)[None],
                               self.joints)
         for total, add in zip((self._second, self._first, self._count), moments):
-            total[live] += add
-        self.frames[live] += 1
+            total[some] += add
+        self.frames[some] += 1
         n = self.frames
         # every frame while the first few hanging-arm frames come in (until the rig is measured),
         # then every solve_seconds, every second after
@@ -392,8 +393,7 @@ class StreamGround:
     def update(self, ankles: np.ndarray) -> np.ndarray:
         """Follow one frame's ankle world positions ``(P, 2, 3)`` (the stream's own, not moved);
         returns the offsets ``(P,)``."""
-        with np.errstate(invalid="ignore"):  # NaN speed on a first frame: not still
-            still = rot.norm(ankles - self._last) * self._fps < self.speed
+        still = rot.norm(ankles - self._last) * self._fps < self.speed  # NaN on a first frame: not still
         self._last = ankles
         planted = still.any(axis=-1)
         height = np.where(still, ankles[..., 1], np.inf).min(axis=-1) - self.ankle_height

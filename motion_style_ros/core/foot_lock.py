@@ -125,12 +125,13 @@ class FootLock:
         glide = self._locked & contact
         self._target += np.where(glide[..., None], self._glide[..., None] * step, 0.0)  # finite where gliding
         self._glide = np.where(start, GLIDE, self._glide * GLIDE)
-        self._target[start] = ankle[start]
-        self._landed[start] = input_ankles[start]
+        np.copyto(self._target, ankle, where=start[..., None])
+        np.copyto(self._landed, input_ankles, where=start[..., None])
         parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
         toes = rot.rotate(g_foot, self._toes)
         heading = np.arctan2(toes[..., 0], toes[..., 2])
-        self._heading[start] = heading[start]
+        np.copyto(self._heading, heading, where=start)
+        held_turn = wrap_angle(self._heading - heading)  # a held foot's heading against the stylizer's
         # the leash: a held ankle at most max_stretch from the stylizer's
         away = ankle - self._target
         reach = rot.norm(away, keepdims=True)
@@ -145,8 +146,8 @@ class FootLock:
         self._target += np.where(self._locked[..., None] & (reach > self.max_stretch),
                                  away * (1.0 - self.max_stretch / np.maximum(reach, _EPS)), 0.0)
         released = self._locked & ~contact
-        self._offset[released] = (self._target - ankle)[released]
-        self._turn[released] = wrap_angle(self._heading - heading)[released]
+        np.copyto(self._offset, self._target - ankle, where=released[..., None])
+        np.copyto(self._turn, held_turn, where=released)
         self._locked = contact
         self._weight = np.where(contact, 1.0, np.maximum(self._weight - self._fade, 0.0))
         # Locked: the ankle stays at its target. Released: the correction it had then fades out,
@@ -156,7 +157,7 @@ class FootLock:
         goal = np.where(contact[..., None], self._target, ankle + fade[..., None] * self._offset)
         if self.clearance:
             goal[..., 1] = np.where(contact, goal[..., 1], np.maximum(goal[..., 1], input_ankles[..., 1]))
-        turn = np.where(contact, wrap_angle(self._heading - heading), fade * self._turn)
+        turn = np.where(contact, held_turn, fade * self._turn)
         moved = (rot.norm(goal - ankle) > _NEAR) | (np.abs(turn) > _NEAR)
         if not moved.any():
             return rotations.copy(), root

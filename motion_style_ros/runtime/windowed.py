@@ -154,10 +154,9 @@ class WindowedStep:
         self._history[:, :-1] = self._history[:, 1:]
         self._history[:, -1] = frame.features
         self._ola.shift()
-        self._ankles = np.roll(self._ankles, -1, axis=1)
-        self._ankles[:, -1] = frame.ankles
-        self._lifts = np.roll(self._lifts, -1, axis=1)
-        self._lifts[:, -1] = frame.lift
+        for kept, new in ((self._ankles, frame.ankles), (self._lifts, frame.lift)):
+            kept[:, :-1] = kept[:, 1:]  # in place: np.roll allocates and costs several times more
+            kept[:, -1] = new
         if fresh.any():
             self._codes_from[fresh] = self._codes_to[fresh]
             self._code_progress[fresh] = 1.0
