@@ -227,8 +227,11 @@ def arm_moments(rotations: np.ndarray, hang: np.ndarray, joints: list[int]
     q = rotations[..., joints, :]
     v = rot.to_matrix(q).reshape(q.shape[:-1] + (9,))  # (T, ..., 8, 9)
     w = np.repeat(hang, len(CHAINS[0]), axis=-1).astype(np.float64)  # (T, ..., 8)
-    weighted = np.moveaxis(w[..., None] * v, 0, -1)  # (..., 8, 9, T): sums over time as products
-    return weighted @ np.moveaxis(v, 0, -2), np.add.reduce(weighted, axis=-1), w.sum(axis=0)
+    # sums over time as matrix products (transpose: np.moveaxis costs more than the sums on a frame)
+    last = v.ndim - 1
+    weighted = (w[..., None] * v).transpose(*range(1, v.ndim), 0)  # (..., 8, 9, T)
+    return (weighted @ v.transpose(*range(1, last), 0, last), np.add.reduce(weighted, axis=-1),
+            w.sum(axis=0))
 
 
 def roll_quaternions(angles: np.ndarray) -> np.ndarray:

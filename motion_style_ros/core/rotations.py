@@ -48,8 +48,9 @@ _LEFT_SIGN = np.array([[1.0, -1.0, -1.0, -1.0], [1.0, 1.0, -1.0, 1.0], [1.0, 1.0
                        [1.0, -1.0, 1.0, 1.0]])
 
 
-def _small(*arrays: np.ndarray) -> bool:
-    return max(x[..., 0].size for x in arrays) <= _SMALL
+def _small(a: np.ndarray, b: np.ndarray) -> bool:
+    """Both hold at most :data:`_SMALL` vectors (no views made: this runs on every product)."""
+    return a.size <= _SMALL * a.shape[-1] and b.size <= _SMALL * b.shape[-1]
 
 
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
