@@ -102,6 +102,25 @@ def _joints(skeleton: Skeleton, names: tuple[str, ...]) -> list[int]:
 
 
 @functools.cache
+def _ancestry(skeleton: Skeleton, joint: int) -> tuple[int, ...]:
+    """A joint's ancestors from the root, and the joint."""
+    chain = [joint]
+    while skeleton.parents[chain[0]] >= 0:
+        chain.insert(0, skeleton.parents[chain[0]])
+    return tuple(chain)
+
+
+def _global_rotation(skeleton: Skeleton, rotations: np.ndarray, joint: int) -> np.ndarray:
+    """One joint's global rotation ``(..., 4)`` as the product of its ancestry's local ones (for the
+    pelvis, one product: cheaper than reading it off forward kinematics' matrices)."""
+    first, *rest = _ancestry(skeleton, joint)
+    g = rotations[..., first, :]
+    for j in rest:
+        g = rot.multiply(g, rotations[..., j, :])
+    return g
+
+
+@functools.cache
 def _feet(skeleton: Skeleton) -> np.ndarray:
     return np.array(skeleton.feet, dtype=np.intp)
 
@@ -278,11 +297,12 @@ class StreamEncoder:
         """``(P, F)`` float32 features of one frame: local rotations ``(P, J, 4)`` and pelvis
         positions ``(P, 3)`` (the translation of the pelvis in its parent's frame)."""
         sk = self.skeleton
-        g_rot, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, root_positions), joints=[sk.pelvis])
+        _, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, root_positions), joints=[])
         yaw = facing_yaw(g_pos, sk)
         previous = np.where(self._fresh[:, None, None], g_pos, self._last)
         prev_yaw = np.where(self._fresh, yaw, self._yaw)
-        out = _encode_frames(sk, self._layout, rotations, g_rot[:, 0], g_pos, previous, yaw, prev_yaw,
+        out = _encode_frames(sk, self._layout, rotations, _global_rotation(sk, rotations, sk.pelvis), g_pos,
+                             previous, yaw, prev_yaw,
                              self.fps)
         self._last, self._yaw, self._fresh[:] = g_pos, yaw, False
         return out

@@ -114,6 +114,8 @@ def forward_kinematics(
         for ancestors in _doubling(skeleton.parents):
             t = t[..., ancestors, :, :] @ t
         g_pos = t[..., :-1, :3, 3].copy()  # contiguous: what callers compute with next
+        if joints is not None and not len(joints):
+            return np.empty(rotations.shape[:-2] + (0, 4)), g_pos
         g = t[..., :-1, :3, :3]
         return rot.from_matrix(g if joints is None else g[..., joints, :, :]), g_pos
     g_pos = np.empty(positions.shape, dtype=np.float64)

@@ -41,13 +41,14 @@ def _stance_sums(root_velocity: np.ndarray, leg_velocity: np.ndarray, scale: np.
     ``root_velocity`` ``(P, 2)`` and ``leg_velocity`` ``(P, K, 2)`` of the contact points (ankles
     and toes), horizontal m/s."""
     world = root_velocity[:, None] + scale[:, None, None] * leg_velocity  # (P, K, 2)
-    foot = np.argmin(np.square(world).sum(axis=-1), axis=1)
-    leg = leg_velocity[np.arange(len(foot)), foot]
-    speed = np.sqrt(np.square(leg).sum(axis=-1))
-    residual = np.sqrt(np.square(world[np.arange(len(foot)), foot]).sum(axis=-1))
+    rows = np.arange(len(world))
+    foot = np.argmin(np.add.reduce(world * world, axis=-1), axis=1)
+    leg, stance = leg_velocity[rows, foot], world[rows, foot]
+    square = np.add.reduce(leg * leg, axis=-1)
+    speed = np.sqrt(square)
+    residual = np.sqrt(np.add.reduce(stance * stance, axis=-1))
     use = (speed > MIN_LEG_SPEED) & (residual < STANCE_RESIDUAL * scale * speed)
-    return (np.where(use, -(root_velocity * leg).sum(axis=-1), 0.0),
-            np.where(use, np.square(leg).sum(axis=-1), 0.0))
+    return np.where(use, -np.add.reduce(root_velocity * leg, axis=-1), 0.0), np.where(use, square, 0.0)
 
 
 def _finite(x: np.ndarray) -> np.ndarray:
