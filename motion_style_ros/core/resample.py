@@ -59,7 +59,7 @@ class Hermite:
             self.r0, self.v0 = self.r1, self.p1 - self.p0
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        s = float(np.clip((t - self.t0) / self.span, 0.0, 1.0))
+        s = min(max(float((t - self.t0) / self.span), 0.0), 1.0)  # every streamed output frame: no np.clip
         s2, s3 = s * s, s * s * s
         a, b, c, d = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2  # x0, m0, x1, m1
         rotations = rot.multiply(self.q0, rot.exp(b * self.r0 + (c + d) * self.r1))

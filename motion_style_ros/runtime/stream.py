@@ -315,7 +315,7 @@ class StreamSession:
             if self._stamp is None or t >= stamp - STAMP_TOLERANCE:
                 frame = q, p
             else:
-                w = np.clip((t - self._stamp) / (stamp - self._stamp), 0.0, 1.0)
+                w = min(max((t - self._stamp) / (stamp - self._stamp), 0.0), 1.0)
                 frame = rot.slerp(self._input[0], q, w), self._input[1] + w * (p - self._input[1])
             self._tick(t, *frame)
             self._ticks += 1
