@@ -77,3 +77,11 @@ def test_apply_hands_each_change_to_every_session():
             got = s.step(*frame)
             assert all((g == w).all() for g, w in zip(got, want))
     assert abs(want[0] - other[0]).max() > 1e-3  # the change made a difference
+
+
+def test_windowed_sessions_run_their_windows_on_different_input_frames():
+    values = {**DEFAULT_VALUES, "input_fps": 120.0}
+    made = settings.sessions(BACKENDS["stgcn"], "stgcn.onnx", 3, values)
+    assert [type(s).__name__ for s in made] == ["WindowedSession"] * 3
+    assert [round(s._phase * 120) for s in made] == [0, 1, 2]
+    assert all(s.lookahead == DEFAULTS["lookahead"] for s in made)

@@ -232,7 +232,7 @@ class WindowedSession(StreamSession):
     ``lookahead``: output delay in model frames (0 to ``window - 1``); ``latent_seed``: every
     performer's seed; ``seed_spread``: see the module docstring. Until :meth:`set_style`, every
     performer gets the card's ``neutral_style`` at alpha 1. ``bank``: a style bank file (default:
-    the model's own, beside it, if there is one).
+    the model's own, beside it, if there is one); ``phase_seconds``: as for the stream session.
     """
 
     def __init__(
@@ -254,6 +254,7 @@ class WindowedSession(StreamSession):
         pipelined: bool = DEFAULTS["pipelined"],
         conform: bool = DEFAULTS["conform"],
         bank: str | Path | None = None,
+        phase_seconds: float = 0.0,
     ) -> None:
         path = model_path(str(model))
         card = read_card(path)
@@ -264,7 +265,7 @@ class WindowedSession(StreamSession):
         self.model, self.mapping, self.style_encoder = w.model, w.mapping, w.style_encoder
         self.model_digest, self.bank, self.bank_path = w.model_digest, w.bank, w.bank_path
         super().__init__(card, w, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                         foot_lock, ground, pipelined, conform)
+                         foot_lock, ground, pipelined, conform, phase_seconds)
 
     @property
     def seed_spread(self) -> float:
