@@ -146,4 +146,7 @@ def stop_process(proc: subprocess.Popen, timeout: float = STOP_SECONDS) -> int:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+            # a recorder killed here leaves its bag without metadata: say so where it is seen
+            print(f"{' '.join(map(str, proc.args[:3]))}... did not stop within {timeout:g} s of SIGINT: killed",
+                  file=sys.stderr)
     return proc.returncode

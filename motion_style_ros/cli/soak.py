@@ -87,7 +87,6 @@ def run(args) -> int:
                    "latency_max_ms": round(worst, 2)}
             rows.append(row)
             print(" ".join(f"{k} {v}" for k, v in row.items()), flush=True)
-    recorded = {t: len(bags.read_joint_states(bag, [t])) for t in ("/joint_states", "/stylized/joint_states")}
     growth = rows[-1]["rss_mb"] - rows[0]["rss_mb"]
     ms = np.concatenate(every)
     whole = {"frames_in": last["frames_in"], "frames_out": last["frames_out"], "dropped": last["dropped"],
@@ -95,11 +94,19 @@ def run(args) -> int:
              **{f"latency_{k}_ms": round(float(v), 2) if len(ms) else None
                 for k, v in zip(("p50", "p99", "p999", "max"),
                                 np.percentile(ms, [50, 99, 99.9, 100]) if len(ms) else [0] * 4)}}
-    summary = {"minutes": args.minutes, "rate_hz": args.rate, "rss_growth_after_minute_1_mb": round(growth, 1),
-               "whole_run": whole, "bag_frames": recorded, "rows": rows}
-    (out / "soak.json").write_text(json.dumps(summary, indent=1) + "\n")
     print("whole run: " + " ".join(f"{k} {v}" for k, v in whole.items()))
-    print(f"memory growth after the first minute: {growth:+.1f} MB; bag {bag}: "
-          f"{recorded['/joint_states']} input and {recorded['/stylized/joint_states']} stylized frames; "
-          f"wrote {out / 'soak.json'}")
+    print(f"memory growth after the first minute: {growth:+.1f} MB")
+    summary = {"minutes": args.minutes, "rate_hz": args.rate, "rss_growth_after_minute_1_mb": round(growth, 1),
+               "whole_run": whole, "rows": rows}
+    try:  # the figures above are kept whatever the bag holds
+        summary["bag_frames"] = {t: len(bags.read_joint_states(bag, [t]))
+                                 for t in ("/joint_states", "/stylized/joint_states")}
+    except MotionStyleError as exc:
+        summary["bag_error"] = str(exc)
+    (out / "soak.json").write_text(json.dumps(summary, indent=1) + "\n")
+    if "bag_error" in summary:
+        print(f"bag {bag}: {summary['bag_error']}; wrote {out / 'soak.json'}")
+        return 1
+    print(f"bag {bag}: {summary['bag_frames']['/joint_states']} input and "
+          f"{summary['bag_frames']['/stylized/joint_states']} stylized frames; wrote {out / 'soak.json'}")
     return 0
