@@ -15,8 +15,9 @@ def add_parser(targets) -> None:
                     "again --pause seconds later and time its first frame and the first stylized "
                     "frame after it (the stylizer is not touched); then kill the stylizer, start it "
                     "again --pause seconds later and time its first stylized frame. At the end, "
-                    "read the recorded bag back: the input's stream with its holes, the stylized "
-                    "frames, and each stylized stamp checked against an input stamp.",
+                    "read the recorded bag back: the input frames seen here that it lacks (and "
+                    "how many of them while the stylizer was down), and every stylized stamp "
+                    "checked against an input frame's.",
     )
     faults.add_argument("--rate", type=float, default=120.0, help="the performer's rate in Hz (default: 120)")
     faults.add_argument("--cycles", type=int, default=3, help="kill/restart cycles (default: 3)")
