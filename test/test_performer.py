@@ -155,3 +155,14 @@ def test_a_performer_far_from_the_origin_is_stylized_as_at_the_origin(frames):
     assert out.dropped == 0 and len(far.states) == len(near.states) == len(frames)
     moved = np.array([p for _, p, _, _ in far.states]) - offset
     np.testing.assert_allclose(moved, [p for _, p, _, _ in near.states], atol=1e-6)
+
+
+def test_bone_lines_join_each_bone_to_its_parent_in_rep103_axes(frames):
+    performer = stream(Recorded())
+    rotations, root = LAYOUT.decode(LAYOUT.names, frames[10])
+    lines = performer.bone_lines(rotations, root).reshape(-1, 2, 3)
+    sk = performer.session.skeleton
+    assert len(lines) == sk.n_joints - sk.pelvis - 1
+    lengths = np.linalg.norm(lines[:, 1] - lines[:, 0], axis=1)
+    np.testing.assert_allclose(lengths, np.linalg.norm(sk.offsets[sk.pelvis + 1:], axis=1), atol=1e-9)
+    assert lines[:, :, 2].min() > -0.05  # Z up: the skeleton stands on the floor, not lies along Y

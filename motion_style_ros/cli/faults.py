@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion_style_ros.cli import pipeline
+
 
 def add_parser(targets) -> None:
     faults = targets.add_parser(
@@ -19,14 +21,10 @@ def add_parser(targets) -> None:
                     "how many of them while the stylizer was down), and every stylized stamp "
                     "checked against an input frame's.",
     )
-    faults.add_argument("--rate", type=float, default=120.0, help="the performer's rate in Hz (default: 120)")
+    pipeline.add_arguments(faults, "out/faults")
     faults.add_argument("--cycles", type=int, default=3, help="kill/restart cycles (default: 3)")
     faults.add_argument("--pause", type=float, default=1.0,
                         help="seconds between a kill and the restart (default: 1)")
-    faults.add_argument("--backend", default="recurrent", help="the stylizer's backend (default: recurrent)")
-    faults.add_argument("--model", default=None,
-                        help="ONNX model with its card beside it (default: the backend's shipped one)")
-    faults.add_argument("--out", default="out/faults", help="folder for the bag and the logs (default: out/faults)")
     faults.set_defaults(func=run)
 
 
@@ -39,7 +37,6 @@ def run(args) -> int:
     import json
     import signal
     import time
-    from pathlib import Path
 
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import JointState
@@ -47,16 +44,10 @@ def run(args) -> int:
     from motion_style_ros.cli.live import STARTUP_SECONDS, LiveGraph, stamp_ns
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.io import bags
-    from motion_style_ros.runtime.backends import backend
 
-    if args.rate <= 0 or args.cycles < 1 or args.pause < 0:
-        raise MotionStyleError("--rate must be positive, --cycles at least 1, --pause not negative")
-    backend(args.backend)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    bag = out / f"bag_{time.strftime('%Y%m%d_%H%M%S')}"
-    stylizer_params = {"backend": args.backend, "input_fps": float(args.rate),
-                       **({"model": args.model} if args.model else {})}
+    if args.cycles < 1 or args.pause < 0:
+        raise MotionStyleError("--cycles must be at least 1 and --pause not negative")
+    out, bag = pipeline.prepare(args)
     inputs: list[tuple[int, int]] = []  # (stamp, arrival) of every input frame seen here
     outputs: list[tuple[int, int]] = []  # and of every stylized frame
     rows = []
@@ -87,9 +78,7 @@ def run(args) -> int:
             graph.spin_until(check, what, STARTUP_SECONDS)
             return found[0]
 
-        graph.start("stylizer", **stylizer_params)
-        graph.start("recorder", bag=str(bag), topics=["joint_states", "stylized/joint_states"])
-        graph.start("synthetic_performer", fps=int(args.rate))
+        pipeline.start(graph, args, bag)
         node = graph.node
         for topic, seen in (("joint_states", inputs), ("stylized/joint_states", outputs)):
             node.create_subscription(
@@ -106,7 +95,7 @@ def run(args) -> int:
             unseen.append((started, first_in[0]))
             first_out = first_after(outputs, first_in[0], "a stylized frame of the restarted performer")
             graph.spin_for(2.0)
-            killed, started_stylizer = restart("stylizer", **stylizer_params)
+            killed, started_stylizer = restart("stylizer", **pipeline.stylizer_params(args))
             back = first_after(outputs, started_stylizer, "the restarted stylizer's first frame")
             stylizer_down.append((killed, back[1]))
             row = {"cycle": cycle,

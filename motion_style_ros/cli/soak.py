@@ -4,6 +4,8 @@ latency percentiles of each minute; then the recorded bag read back."""
 
 from __future__ import annotations
 
+from motion_style_ros.cli import pipeline
+
 
 def add_parser(targets) -> None:
     soak = targets.add_parser(
@@ -17,9 +19,7 @@ def add_parser(targets) -> None:
                     "the frames in the recorded bag.",
     )
     soak.add_argument("--minutes", type=float, default=60.0, help="how long (default: 60)")
-    soak.add_argument("--rate", type=float, default=120.0, help="the performer's rate in Hz (default: 120)")
-    soak.add_argument("--backend", default="recurrent", help="the stylizer's backend (default: recurrent)")
-    soak.add_argument("--out", default="out/soak", help="folder for the bag and the logs (default: out/soak)")
+    pipeline.add_arguments(soak, "out/soak")
     soak.set_defaults(func=run)
 
 
@@ -31,7 +31,6 @@ def _rss_mb(pid: int) -> float:
 def run(args) -> int:
     import json
     import time
-    from pathlib import Path
 
     import numpy as np
     from diagnostic_msgs.msg import DiagnosticArray
@@ -42,19 +41,13 @@ def run(args) -> int:
     from motion_style_ros.cli.live import STARTUP_SECONDS, LiveGraph, stamp_ns
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.io import bags
-    from motion_style_ros.runtime.backends import backend
 
-    if args.minutes <= 0 or args.rate <= 0:
-        raise MotionStyleError("--minutes and --rate must be positive")
-    backend(args.backend)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    bag = out / f"bag_{time.strftime('%Y%m%d_%H%M%S')}"
+    if args.minutes <= 0:
+        raise MotionStyleError(f"--minutes must be positive, got {args.minutes:g}")
+    out, bag = pipeline.prepare(args)
     rows = []
     with LiveGraph("motion_style_soak", out / "logs") as graph:
-        stylizer = graph.start("stylizer", backend=args.backend, input_fps=float(args.rate))
-        graph.start("recorder", bag=str(bag), topics=["joint_states", "stylized/joint_states"])
-        graph.start("synthetic_performer", fps=int(args.rate))
+        stylizer = pipeline.start(graph, args, bag)
         node = graph.node
         latencies: list[int] = []
         node.create_subscription(JointState, "stylized/joint_states",

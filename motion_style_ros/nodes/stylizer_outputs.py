@@ -15,9 +15,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.io.joint_state import to_ros
 from motion_style_ros.nodes import joint_state
 from motion_style_ros.runtime.performer import PerformerStream
 from motion_style_ros.runtime.trajectory import Chunk
@@ -75,11 +73,7 @@ class Performer:
     def markers(self, rotations: np.ndarray, root: np.ndarray, stamp: Time) -> MarkerArray:
         """The stylized skeleton's bones below the pelvis as one LINE_LIST, in REP-103 axes (in the
         node's frame_id, or 'world')."""
-        skeleton = self.stream.session.skeleton
-        bones = np.array([[skeleton.parents[j], j] for j in range(skeleton.pelvis + 1, skeleton.n_joints)]).ravel()
-        offsets = skeleton.offsets.copy()
-        offsets[skeleton.pelvis] = root
-        ends = to_ros(forward_kinematics(skeleton, rotations, offsets)[1][bones])
+        ends = self.stream.bone_lines(rotations, root)
         marker = Marker(ns=self.prefix or "stylizer", id=0, type=Marker.LINE_LIST, action=Marker.ADD,
                         points=[Point(x=x, y=y, z=z) for x, y, z in ends.tolist()])
         marker.header.stamp = stamp

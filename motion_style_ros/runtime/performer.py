@@ -19,8 +19,9 @@ from typing import Protocol
 
 import numpy as np
 
+from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout
+from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.runtime.health import health
 from motion_style_ros.runtime.intake import DROP_REASONS, RESTART_REASONS, Bounds, Dropped, Intake
 from motion_style_ros.runtime.robot_target import RobotTarget
@@ -82,6 +83,8 @@ class PerformerStream:
         # The other names' values go out with the pose they came with: the frame of stamp - latency.
         self.delay = FrameDelay(session.gap_seconds)
         self.latency_ns = round(session.latency * 1e9)
+        sk = session.skeleton
+        self._bones = np.array([[sk.parents[j], j] for j in range(sk.pelvis + 1, sk.n_joints)]).ravel()
         self.clear()
 
     @property
@@ -145,6 +148,14 @@ class PerformerStream:
             for chunk in self.robot_chunker.add(frame.stamp_ns, q):
                 self.outputs.robot_trajectory(self.robot.names, chunk, frame_id)
         self.session.catch_up()  # pipelined: the model frames of this input, now that it is sent on
+
+    def bone_lines(self, rotations: np.ndarray, root: np.ndarray) -> np.ndarray:
+        """``(2B, 3)``: each bone below the pelvis of a stylized frame as a start and an end point,
+        REP-103 axes (what RViz draws as a LINE_LIST)."""
+        sk = self.session.skeleton
+        offsets = sk.offsets.copy()
+        offsets[sk.pelvis] = root
+        return to_ros(forward_kinematics(sk, rotations, offsets)[1][self._bones])
 
     def restart(self, reason: str, why: str) -> None:
         """Start the stream afresh (its rig measurements kept), counted by reason."""
