@@ -27,7 +27,7 @@ from tqdm import tqdm
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.training import hardware
-from motion_style_ros.training.data import Data, DataConfig, data_tag
+from motion_style_ros.training.data import Data, DataConfig, data_tag, load_for, recipe
 
 CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
 PROGRESS_INTERVAL = 0.1 if sys.stderr.isatty() else 30.0  # progress lines in a log file: one per 30 s
@@ -253,3 +253,30 @@ def run_record(trainer: ResumableTrainer, setup_seconds: float, command: str) ->
     return {"command": command, "seed": trainer.cfg.seed, "config": asdict(trainer.cfg),
             "wall_time_s": round(trainer.state["train_seconds"] + setup_seconds, 1),
             "history": trainer.summary()}
+
+
+def fit(trainer_class: type[ResumableTrainer], cfg: DataConfig, data: Data | None, checkpoints: Path,
+        threads: int, device: str | None, progress: bool, resume: bool, minutes: float | None,
+        iterations: int | None, log_every: int, val_every: int,
+        prepare=None) -> tuple[ResumableTrainer, Data, float]:
+    """A model's run, as every trainer's ``train`` makes it: on ``device`` (under ``torchrun``, in
+    every process), the data loaded (rank 0 first), the trainer started or resumed, ``prepare``
+    (e.g. continuing another run) applied, then trained; the trainer, the data and the setup time
+    (s)."""
+    with hardware.session(threads, device) as where:
+        started = time.perf_counter()
+        with hardware.rank_zero_first():
+            data = data or load_for(cfg, progress and not hardware.rank())
+        trainer = trainer_class.started(cfg, data, checkpoints, progress, resume, where)
+        if prepare is not None:
+            prepare(trainer)
+        setup_s = time.perf_counter() - started
+        trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
+    return trainer, data, setup_s
+
+
+def card_record(trainer: ResumableTrainer, data: Data, setup_seconds: float, command: str,
+                licence: str | None) -> dict:
+    """What every model's card says of its run: the data recipe, clips per split and the run."""
+    return {**recipe(trainer.cfg, licence), "clips": {k: len(c.features) for k, c in data.splits.items()},
+            **run_record(trainer, setup_seconds, command)}

@@ -13,7 +13,6 @@ evaluation judges in ``models/`` are never used here.
 from __future__ import annotations
 
 import copy
-import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -29,17 +28,16 @@ from motion_style_ros.training import hardware
 from motion_style_ros.training.data import (
     Data,
     DataConfig,
-    load_for,
     normalisation,
     other_styles,
-    recipe,
     windows,
 )
 from motion_style_ros.training.loop import (
     CHECKPOINTS,
     PROGRESS_INTERVAL,
     ResumableTrainer,
-    run_record,
+    card_record,
+    fit,
     update_average,
 )
 from motion_style_ros.training.losses import Losses, val_scores
@@ -286,21 +284,14 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     """Train (resuming when asked) on ``device`` (default: the best there is; under ``torchrun``,
     in every process), export the weight-averaged generator to ``out_dir``; returns the model card
     (None in the processes other than rank 0, which export nothing)."""
-    with hardware.session(threads, device) as where:
-        started = time.perf_counter()
-        with hardware.rank_zero_first():
-            data = data or load_for(cfg, progress and not hardware.rank())
-        trainer = Trainer.started(cfg, data, checkpoints, progress, resume, where)
-        setup_s = time.perf_counter() - started
-        trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
+    trainer, data, setup_s = fit(Trainer, cfg, data, checkpoints, threads, device, progress, resume,
+                                 minutes, iterations, log_every, val_every)
     if trainer.rank:
         return None
     probe = max(data.splits["val"].features, key=len)
     info = {
-        **recipe(cfg, licence),
-        "clips": {k: len(c.features) for k, c in data.splits.items()},
+        **card_record(trainer, data, setup_s, command, licence),
         "contents": list(data.contents),
-        **run_record(trainer, setup_s, command),
         "exported": f"exponential moving average of the generator weights (decay {cfg.ema})",
         "differences_from_paper": [
             ("no input style or content label anywhere (a live stream has neither): the encoder "

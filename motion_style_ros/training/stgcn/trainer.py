@@ -18,7 +18,6 @@ evaluation judges in ``models/`` are never used here.
 from __future__ import annotations
 
 import copy
-import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -34,18 +33,15 @@ from motion_style_ros.models.stgcn import (
     StyleEncoder,
     pick,
 )
-from motion_style_ros.training import hardware
 from motion_style_ros.training.data import (
     Data,
     DataConfig,
-    load_for,
     normalisation,
     other_styles,
-    recipe,
     style_windows,
     windows,
 )
-from motion_style_ros.training.loop import CHECKPOINTS, ResumableTrainer, run_record, update_average
+from motion_style_ros.training.loop import CHECKPOINTS, ResumableTrainer, card_record, fit, update_average
 from motion_style_ros.training.losses import Losses, pose, val_scores
 from motion_style_ros.training.stgcn.export import write_model
 
@@ -276,8 +272,9 @@ class Trainer(ResumableTrainer):
         other = (self.val_targets + 1) % len(self.data.styles)
         seeds = gen(x, mapping(z2, F.one_hot(self.val_targets, len(self.data.styles)).float()))
         styles = gen(x, mapping(z, F.one_hot(other, len(self.data.styles)).float()))
-        base, (between_seeds, between_styles) = pose(self.losses.views(out)["pos"]), (
-            (pose(self.losses.views(o)["pos"]) - base).norm(dim=-1).mean() for o in (seeds, styles))
+        base = pose(self.losses.views(out)["pos"])
+        between_seeds, between_styles = ((pose(self.losses.views(o)["pos"]) - base).norm(dim=-1).mean()
+                                         for o in (seeds, styles))
         return {**val_scores(rec),
                 "val_style_acc": round(float((logits.argmax(-1) == style).float().mean()), 4),
                 "val_transfer_style_acc": round(float((transferred == self.val_targets).float().mean()), 4),
@@ -293,25 +290,20 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     this config) on ``device`` (default: the best there is; under ``torchrun``, in every process),
     export the weight averages to ``out_dir``; returns the card (None in the processes other than
     rank 0, which export nothing)."""
-    with hardware.session(threads, device) as where:
-        started = time.perf_counter()
-        with hardware.rank_zero_first():
-            data = data or load_for(cfg, progress and not hardware.rank())
-        trainer = Trainer.started(cfg, data, checkpoints, progress, resume, where)
+    def continue_other_run(trainer: Trainer) -> None:
         if init_from is not None and trainer.state["iteration"] == 0:
             trainer.initialise(Trainer.folder(checkpoints, init_from, cfg.data) / "checkpoint.pt",
                                Trainer.NETWORK_SETTINGS)
             if not trainer.rank:
                 print(f"continuing seed {init_from}'s run at iteration {trainer.state['iteration']}")
-        setup_s = time.perf_counter() - started
-        trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
+
+    trainer, data, setup_s = fit(Trainer, cfg, data, checkpoints, threads, device, progress, resume,
+                                 minutes, iterations, log_every, val_every, continue_other_run)
     if trainer.rank:
         return None
     probe = max(data.splits["val"].features, key=len)
     info = {
-        **recipe(cfg, licence),
-        "clips": {k: len(c.features) for k, c in data.splits.items()},
-        **run_record(trainer, setup_s, command),
+        **card_record(trainer, data, setup_s, command, licence),
         **({"continued_from": trainer.state["init_from"]} if "init_from" in trainer.state else {}),
         "exported": f"exponential moving averages of the three networks' weights (decay {cfg.ema})",
         "differences_from_paper": [
