@@ -92,7 +92,8 @@ def add_parser(subparsers):
     stgcn.set_defaults(func=run_stgcn)
 
 
-_DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal"}
+_DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
+                  "unlabelled": ""}
 
 
 def _run_flags(parser) -> None:
@@ -135,6 +136,11 @@ def _data_flags(parser) -> None:
                              "add' (default: none)")
     parser.add_argument("--neutral", default="normal", metavar="STYLE",
                         help="the neutral style (of --data; default: normal)")
+    parser.add_argument("--unlabelled", default="", metavar="SPEC,SPEC",
+                        help="also restyle these clips without style labels in training, so that the "
+                             "model holds on other capture setups: cmu:SUBJECT (e.g. cmu:07), a BVH file "
+                             "or a folder of them, any rig; 'eval --unseen' then leaves them out "
+                             "(default: none)")
 
 
 def _data_fields(args) -> tuple[dict, str]:
@@ -148,13 +154,14 @@ def _data_fields(args) -> tuple[dict, str]:
                   "speeds": tuple(float(v) for v in args.speeds.split(",") if v),
                   "balance": args.balance, "mirror": args.mirror,
                   "exclude": tuple(n for n in args.exclude_styles.split(",") if n),
-                  "data": args.data or "", "neutral": args.neutral}
+                  "data": args.data or "", "neutral": args.neutral,
+                  "unlabelled": tuple(n for n in args.unlabelled.split(",") if n)}
     except ValueError:
         raise MotionStyleError("--datasets takes set numbers (1,2) and --speeds numbers (0.8,1.25)") from None
     if not fields["datasets"] or not set(fields["datasets"]) <= {1, 2} or any(v <= 0 for v in fields["speeds"]):
         raise MotionStyleError("--datasets takes 1 and/or 2; --speeds positive numbers")
     given = {"datasets": args.datasets, "speeds": args.speeds, "balance": f"{args.balance:g}",
-             "exclude_styles": args.exclude_styles, "neutral": args.neutral}
+             "exclude_styles": args.exclude_styles, "neutral": args.neutral, "unlabelled": args.unlabelled}
     flags = "".join(f" --{k.replace('_', '-')} {v}" for k, v in given.items() if v != _DATA_DEFAULTS[k])
     user = "".join(f" --{k} {shlex.quote(v)}" for k, v in (("data", args.data), ("out", args.out),
                                                             ("licence", args.licence)) if v and args.data)
@@ -242,6 +249,9 @@ def run_stgcn(args) -> int:
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
     out = _output(args)
     fields, recipe = _data_fields(args)
+    if fields["unlabelled"]:
+        raise MotionStyleError("--unlabelled: the ST-GCN trainer does not restyle unlabelled clips yet; "
+                               "'train recurrent' does")
     command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
         f" --iterations {args.iterations}" if args.iterations is not None else "") + (
         f" --init-from {args.init_from}" if args.init_from is not None else "") + (

@@ -2,6 +2,8 @@
 
 - :mod:`.data`: Bandai takes (or a user's labelled BVH folder) as feature clips, their
   augmentation, windows and normalisation;
+- :mod:`.unlabelled`: clips without style labels (other capture setups) conditioned as a stream is,
+  for the generator to restyle in training;
 - :mod:`.losses`: differentiable kinematics and the reconstruction losses of the stylizers;
 - :mod:`.loop`: the resumable training loop (checkpoints, budget, log) every stylizer trainer runs,
   on any device and data-parallel under ``torchrun``;

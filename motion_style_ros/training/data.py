@@ -43,6 +43,9 @@ class DataConfig:
     exclude: tuple[str, ...] = ()  # styles left out (to enrol them later through a style bank)
     data: str = ""  # a user's labelled BVH folder instead of the Bandai sets ``datasets``
     neutral: str = NEUTRAL  # the style of the neutral branch (and the card's neutral style)
+    # clips without style labels (``cmu:SUBJECT``, BVH files or folders) restyled in training but
+    # never reconstructed nor shown to a critic as real (:mod:`motion_style_ros.training.unlabelled`)
+    unlabelled: tuple[str, ...] = ()
 
 
 @dataclass
@@ -58,6 +61,8 @@ class Data:
     styles: tuple[str, ...]
     contents: tuple[str, ...]
     splits: dict[str, Clips]  # "train", "val"
+    unlabelled: Clips | None = None  # styles and contents -1 (DataConfig.unlabelled)
+    unlabelled_names: tuple[str, ...] = ()  # the clips it holds, for the card and eval --unseen
 
 
 def load_data(datasets: tuple[int, ...] = (2,), progress: bool = True, root: Path | None = None,
@@ -166,9 +171,16 @@ def other_styles(style: torch.Tensor, n_styles: int, rng: np.random.Generator) -
 
 
 def load_for(cfg: DataConfig, progress: bool = True) -> Data:
-    """:func:`load_data` with a trainer config's data fields."""
-    return load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance, mirror=cfg.mirror,
+    """:func:`load_data` with a trainer config's data fields, and its unlabelled clips."""
+    data = load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance, mirror=cfg.mirror,
                      exclude=cfg.exclude, folder=cfg.data or None, neutral=cfg.neutral)
+    if cfg.unlabelled:
+        from motion_style_ros.training.unlabelled import load_unlabelled
+
+        features, names = load_unlabelled(cfg.unlabelled, FPS, cfg.speeds, cfg.mirror, progress)
+        unknown = np.full(len(features), -1)
+        data = replace(data, unlabelled=Clips(features, unknown, unknown), unlabelled_names=tuple(names))
+    return data
 
 
 def data_tag(data: str) -> str:
@@ -185,12 +197,15 @@ def recipe(cfg: DataConfig, licence: str | None = None) -> dict:
         aug.append("every train take (and speed copy) also mirrored left-right, left/right contents swapped")
     if cfg.balance:
         aug.append(f"windows weighted frames / style_frames ** {cfg.balance}")
+    unlabelled = ({"unlabelled": f"clips without style labels, restyled into every style in training "
+                                 f"(never reconstructed nor shown as real): {', '.join(cfg.unlabelled)}"}
+                  if cfg.unlabelled else {})
     if cfg.data:
         return {"data": f"the user's labelled BVH folder {cfg.data}: 'train' takes (val takes for the val "
                         "figures; test takes never seen; split in its motion_style_split.csv)",
                 "styles": "every style of the folder" + (f" but {', '.join(cfg.exclude)} (left out)"
                                                           if cfg.exclude else "") + f"; neutral {cfg.neutral}",
-                "augmentation": "; ".join(aug) or "none", "licence": licence or USER_LICENCE}
+                "augmentation": "; ".join(aug) or "none", **unlabelled, "licence": licence or USER_LICENCE}
     return {
         "data": f"Bandai Namco Research Motion Dataset(s) {', '.join(map(str, cfg.datasets))}: 'train' "
                 "takes (val takes for the val figures; test takes never seen)",
@@ -198,6 +213,7 @@ def recipe(cfg: DataConfig, licence: str | None = None) -> dict:
                    + "; dataset-1 styles named like a dataset-2 style are their own styles with the "
                    "suffix -d1 (motion_style_ros.io.datasets.style_label)"),
         "augmentation": "; ".join(aug) or "none",
+        **unlabelled,
     }
 
 

@@ -77,6 +77,11 @@ def session(threads: int, name: str | None = None) -> Iterator[torch.device]:
     joined = _join(where)
     try:
         yield where
+        if joined:
+            # every process leaves together: one that tore the group down while rank 0 still
+            # exported once aborted in gloo (SIGABRT in CI); not after an error, where the others
+            # may never come
+            dist.barrier()
     finally:
         if joined:
             dist.destroy_process_group()

@@ -278,5 +278,7 @@ def fit(trainer_class: type[ResumableTrainer], cfg: DataConfig, data: Data | Non
 def card_record(trainer: ResumableTrainer, data: Data, setup_seconds: float, command: str,
                 licence: str | None) -> dict:
     """What every model's card says of its run: the data recipe, clips per split and the run."""
-    return {**recipe(trainer.cfg, licence), "clips": {k: len(c.features) for k, c in data.splits.items()},
-            **run_record(trainer, setup_seconds, command)}
+    clips = {k: len(c.features) for k, c in data.splits.items()}
+    if data.unlabelled_names:  # eval --unseen leaves these out
+        clips["unlabelled"] = list(data.unlabelled_names)
+    return {**recipe(trainer.cfg, licence), "clips": clips, **run_record(trainer, setup_seconds, command)}

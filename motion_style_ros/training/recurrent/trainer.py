@@ -79,6 +79,9 @@ class Config(DataConfig):
     # transferred output (squared velocity where the input's contact feature is 1); off in the
     # shipped model, 0.5 in the 22-style run
     w_foot: float = 0.0
+    # windows of the unlabelled clips (DataConfig.unlabelled) per iteration, each restyled into a
+    # random style: critic and content terms only (they have no style to reconstruct)
+    unlabelled_batch: int = 8
     # the adversarial and perceptual weights ramp up linearly over the first iterations, so the
     # generator reconstructs plausible motion before the critics push it around
     warmup: int = 2000
@@ -220,13 +223,24 @@ class Trainer(ResumableTrainer):
         x, style, content = windows(self.data.splits["train"], cfg.window, cfg.batch, rng)
         x, style, content, other = self.shard(x, style, content, other_styles(style, n_styles, rng))
         batch = len(x)
-        out = self.losses.views(self.stylize(torch.cat([x, x]), torch.cat([style, other])))
+        # the restyled windows: every labelled one into another style, then unlabelled ones into any
+        source, target = x, other
+        if self.data.unlabelled is not None:
+            u, _, _ = windows(self.data.unlabelled, cfg.window, cfg.unlabelled_batch, rng)
+            u, u_target = self.shard(u, torch.from_numpy(rng.integers(0, n_styles, len(u))))
+            source, target = torch.cat([x, u]), torch.cat([other, u_target])
+        out = self.losses.views(self.stylize(torch.cat([x, source]), torch.cat([style, target])))
         rec = {k: v[:batch] for k, v in out.items()}
         fake = {k: v[batch:] for k, v in out.items()}
-        real = self.losses.views(_frames(x))
+        source_views = self.losses.views(_frames(source))
+        real = {k: v[:batch] for k, v in source_views.items()}
+        with torch.no_grad():
+            source_content, target_maps = self.content(source_views["content"])
+        # an unlabelled window's content: what the content network reads in it
+        contents = torch.cat([F.one_hot(content, len(self.data.contents)).float(),
+                              source_content[batch:].softmax(-1)])
         labels_real = (_onehot(style, n_styles, cfg.crops), _onehot(content, len(self.data.contents), cfg.crops))
-        labels_fake = (_onehot(other, n_styles, cfg.crops), labels_real[1])
-
+        labels_fake = (_onehot(target, n_styles, cfg.crops), contents.repeat_interleave(cfg.crops, dim=0))
 
         # critic: real -> 1, transferred -> -1, gradient penalty on real crops (LSGAN, paper eq. 5, 6)
         self.dis.requires_grad_(True)
@@ -244,11 +258,9 @@ class Trainer(ResumableTrainer):
         self.dis.requires_grad_(False)
         terms = self.losses.reconstruction(rec, real)
         adv = self.dis(self.crops(fake["pv"]), *labels_fake).pow(2).mean()
-        with torch.no_grad():
-            _, target_maps = self.content(real["content"])
         _, maps = self.content(fake["content"])
         per = sum(F.mse_loss(a, b) for a, b in zip(maps, target_maps))
-        foot = self.losses.foot(fake, x)
+        foot = self.losses.foot(fake, source)
         ramp = min(1.0, (iteration + 1) / cfg.warmup) if cfg.warmup else 1.0
         total = sum(terms.values()) + ramp * (cfg.w_adv * adv + cfg.w_per * per + cfg.w_foot * foot)
         self.opt_g.zero_grad()
