@@ -85,3 +85,20 @@ def test_unseen_checks_catch_nan_and_flips():
     nan = flipped.copy()
     nan[5] = np.nan
     assert not unseen.check(walk, type(walk).from_rotations(walk.skeleton, nan, walk.positions[:, 1], 30.0))["finite"]
+
+
+def test_unseen_clips_leave_out_what_a_model_trained_on_and_recognition_is_split_by_source(datasets):
+    from motion_style_ros.evaluation.judges import Judge
+
+    every = unseen.neutral_clips(datasets)
+    kept = unseen.neutral_clips(datasets, leave_out=("cmu 02_01", "cmu 02_02"))
+    assert len(kept) == len(every) - 2 and not any(t.startswith(("cmu 02_01 ", "cmu 02_02 ")) for t, _ in kept)
+    assert {unseen.capture_setup(t) for t, _ in every} == {"cmu 02", "cmu 07", "xia"}
+    # the input itself as the output: recognised where the judge reads the clip as the target
+    clips = [every[0], every[-1]]
+    judge = Judge("style")
+    report = unseen.evaluate(lambda m, s: m, ["normal", "elderly"], clips, [judge], rates=(), progress=False)
+    by_source = report["summary"]["style_recognised_1_by_source"]
+    assert set(by_source) == {"cmu 02", "xia"}
+    rows = [r for r in report["rows"] if unseen.capture_setup(r["clip"]) == "xia"]
+    assert by_source["xia"] == np.mean([r["judged_style_1"] == r["style"] for r in rows])

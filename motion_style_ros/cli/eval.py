@@ -183,12 +183,18 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
     if not stylizers:
         raise MotionStyleError("--unseen checks trained stylizers: name one with --stylizer")
     judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
-    clips = unseen.neutral_clips()
+    cards = {name: read_card(model_path(args.model or default_model(name))) for name in stylizers}
+    # clips any of the models trained on (train --unlabelled) are not unseen: every model is
+    # measured on the same others
+    trained = tuple(sorted({c for card in cards.values() for c in card["training"]["clips"].get("unlabelled", [])}))
+    clips = unseen.neutral_clips(leave_out=trained)
+    if trained:
+        print(f"left out {len(trained)} clips a model trained on: {', '.join(trained)}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     reports = {}
     for name, stylize in stylizers.items():
-        styles = read_card(model_path(args.model or default_model(name)))["styles"]
+        styles = cards[name]["styles"]
         reports[name] = unseen.evaluate(stylize, styles, clips, judges, progress=not args.quiet)
         print(f"{name}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in reports[name]["summary"].items()))
         # Pictures: the input beside two contrasting styles, for a walk of each studio.
@@ -200,7 +206,7 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
             render_gif(motions, titles, stem.with_suffix(".gif"), seconds=6.0)
             print(f"wrote {stem}.png and {stem}.gif")
     path = out / "unseen.json"
-    settings = {"alpha": args.alpha, "judges": [j.model.path.name for j in judges]}
+    settings = {"alpha": args.alpha, "judges": [j.model.path.name for j in judges], "left_out": list(trained)}
     path.write_text(json.dumps({"settings": settings, **reports}, indent=1) + "\n")
     print(f"wrote {path}")
     if args.record:
@@ -294,4 +300,6 @@ def _record(args: argparse.Namespace, key: str, metrics: dict) -> None:
 
 
 def _fmt(value) -> str:
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}: {_fmt(v)}" for k, v in value.items()) + "}"
     return f"{value:.3g}" if isinstance(value, float) else str(value)

@@ -34,19 +34,29 @@ Stylizer = Callable[[Motion, str], Motion]
 FLIP_DEGREES = 90.0
 
 
-def neutral_clips(root: Path | None = None) -> list[tuple[str, Motion]]:
+def neutral_clips(root: Path | None = None, leave_out: tuple[str, ...] = ()) -> list[tuple[str, Motion]]:
     """Every CMU clip (neutral performances, calibration T-pose dropped) and the Xia neutral clips,
     retargeted to the canonical skeleton, their planted ankles at the training data's height (the
-    sessions conform their arm rolls)."""
+    sessions conform their arm rolls); titled ``"cmu 02_01 (walk)"``. ``leave_out``: clips a model
+    trained on (its card's ``training.clips.unlabelled``, named ``"cmu 02_01"``)."""
     infos = datasets.index_cmu(root) + [i for i in datasets.index_xia(root) if i.style == "neutral"]
     stats = rotation_stats()
     clips = []
     for info in infos:
+        if f"{info.dataset} {info.name}" in leave_out:
+            continue
         motion = datasets.load_clip(info)
         motion = motion[1:] if info.dataset == "cmu" else motion
         canon = ground(retarget(motion, canonical()), stats)
         clips.append((f"{info.dataset} {info.name} ({info.content})", canon))
     return clips
+
+
+def capture_setup(title: str) -> str:
+    """The capture setup of a clip titled by :func:`neutral_clips`: ``"cmu 02"`` (a CMU subject)
+    or ``"xia"``."""
+    dataset, name = title.split()[:2]
+    return f"{dataset} {name.split('_')[0]}" if dataset == "cmu" else dataset
 
 
 def largest_joint_step(motion: Motion) -> float:
@@ -128,6 +138,9 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
             summary[f"style_recognised_{k}"] = float(np.mean([r[f"recognised_{k}"] for r in judged]))
             summary[f"target_raised_{k}"] = float(np.mean([r[f"target_gain_{k}"] > 0 for r in judged]))
             summary[f"target_gain_median_{k}"] = float(np.median([r[f"target_gain_{k}"] for r in judged]))
+            groups = sorted({capture_setup(r["clip"]) for r in judged})
+            summary[f"style_recognised_{k}_by_source"] = {
+                g: float(np.mean([r[f"recognised_{k}"] for r in judged if capture_setup(r["clip"]) == g])) for g in groups}
     summary.update({
         "largest_joint_step_deg": max(steps) if steps else None,
         "largest_joint_step_input_deg": max(r["largest_joint_step_input_deg"] for r in rows),
