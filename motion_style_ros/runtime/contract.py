@@ -37,11 +37,18 @@ MAPPING = Contract(("z", "style"), ("code",))
 STYLE_ENCODER = Contract(("features",), ("codes", "logits"))
 # An evaluation judge: a clip's features to class logits and an embedding.
 JUDGE = Contract(("features",), ("logits", "embedding"))
+# The sequence adversarial autoencoder (ESANN 2018 seed): the encoder (a window to its content
+# code), the decoder (content code, style input, each frame's position in the window to the
+# [root | rot6d] frames) and Model2's style encoder (a window to its style code and style logits).
+SAAE_ENCODER = Contract(("features",), ("content",))
+SAAE_DECODER = Contract(("content", "style", "position"), ("output",))
+SAAE_STYLE_ENCODER = Contract(("features",), ("style_code", "logits"))
 
 CARD_KEYS = ("kind", "styles", "fps", "feature_version")  # every stylizer's card
 KIND_KEYS: dict[str, tuple[str, ...]] = {  # and each kind's own
     "recurrent": ("state_size",),
     "windowed": ("window", "latent_dim", "style_dim", "files"),
+    "saae": ("window", "variant", "content_dim", "style_width", "style_inputs", "files"),
 }
 
 
