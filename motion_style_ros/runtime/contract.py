@@ -43,12 +43,18 @@ JUDGE = Contract(("features",), ("logits", "embedding"))
 SAAE_ENCODER = Contract(("features",), ("content",))
 SAAE_DECODER = Contract(("content", "style", "position"), ("output",))
 SAAE_STYLE_ENCODER = Contract(("features",), ("style_code", "logits"))
+# MoST (issue 20): the streamed step (a window, the reference's body-part style feature S and mean
+# content feature C, alpha from the window's own style to the reference's) and the style side of
+# its encoder, run once per reference clip.
+MOST = Contract(("features", "style", "pooled", "alpha"), ("output",))
+MOST_STYLE = Contract(("features",), ("style", "pooled"))
 
 CARD_KEYS = ("kind", "styles", "fps", "feature_version")  # every stylizer's card
 KIND_KEYS: dict[str, tuple[str, ...]] = {  # and each kind's own
     "recurrent": ("state_size",),
     "windowed": ("window", "latent_dim", "style_dim", "files"),
     "saae": ("window", "variant", "content_dim", "style_width", "style_inputs", "files"),
+    "most": ("window", "parts", "feature_dim", "files"),
 }
 
 
