@@ -1,0 +1,299 @@
+"""The sequence adversarial autoencoder (ESANN 2018 seed) at run time, without torch: windowed
+restyling through the shared stream session, and a sampler of endless new motion from the prior.
+
+- :class:`SaaeStep` is :class:`~motion_style_ros.runtime.windowed.WindowedStep`'s windows and
+  overlap-add around another model: each window is encoded to its content code and decoded with the
+  target's style input. Each performer has a style input per style (the card's ``style_inputs``:
+  one-hot for Model1, the style's mean style code for Model2), mixed by the controls' style weights
+  and blended over ``blend_seconds`` like the ST-GCN codes. Alpha moves Model2's style input from
+  the window's own style code (its style encoder) to the target's, and Model1's output from the
+  input's frames to the restyled ones: alpha 0 gives the input back (Model1) or its reconstruction
+  (Model2). The plain SAAE has no style input, so it cannot restyle: a session refuses it.
+- :class:`SaaeSession` is the stream session with Model2's reference clips: a clip's style code
+  (the mean over its windows) replaces a style's input (:meth:`SaaeSession.set_reference`).
+- :class:`Sampler` decodes content codes drawn from the prior N(0, I) with a chosen style's input
+  into an endless ``[root | rot6d]`` stream (and poses): windows half overlapping, each next one the
+  best-fitting of a few candidates to where the last one goes, blended by overlap-add
+  (:mod:`motion_style_ros.core.overlap_add`), so no seam shows. It is the source of a "learned
+  performer" (new motion of a chosen style with no mocap at all).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from motion_style_ros.core.features import StreamDecoder, decode, encode
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.overlap_add import OverlapAdd
+from motion_style_ros.core.resample import resample
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime.contract import SAAE_DECODER, SAAE_ENCODER, SAAE_STYLE_ENCODER, check_card
+from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
+from motion_style_ros.runtime.stream import StreamSession
+from motion_style_ros.runtime.windowed import WindowedStep, latent
+
+DEFAULT_MODEL = "saae_model2_5d.onnx"  # the paper's best (Table 1, 2); trained by 'motion-style train saae'
+
+
+def _positions(frames: int, window: int, batch: int) -> np.ndarray:
+    """The decoder's ``position`` input: ``(batch, frames)`` frame indices over the trained window."""
+    return np.repeat((np.arange(frames, dtype=np.float32) / window)[None], batch, axis=0)
+
+
+def _style_table(card: dict, key: str) -> np.ndarray:
+    """``(S, style_width)``: the card's per-style ``style_inputs`` or ``style_spread`` in its styles' order."""
+    return np.array([card[key][s] for s in card["styles"]], dtype=np.float64).reshape(
+        len(card["styles"]), int(card["style_width"]))
+
+
+class _Restyler:
+    """Encoder and decoder as the one ``run(features, code)`` that :class:`WindowedStep` calls per
+    window; Model1's alpha (set by the step just before) blends the output from the input's frames."""
+
+    def __init__(self, step: SaaeStep) -> None:
+        self.step = step
+        self.alpha: np.ndarray | None = None
+
+    def run(self, features: np.ndarray, code: np.ndarray) -> dict[str, np.ndarray]:
+        s = self.step
+        content = s.encoder.run(features=features)["content"]
+        out = s.decoder.run(content=content, style=code,
+                            position=_positions(features.shape[1], s.trained_window, len(features)))["output"]
+        if s.variant == "model1" and self.alpha is not None and (self.alpha < 1.0).any():
+            source = features[..., : out.shape[-1]]
+            out = source + self.alpha[:, :, None].astype(np.float32) * (out - source)
+        return {"output": out}
+
+
+class SaaeStep(WindowedStep):
+    """The SAAE at ``path`` (card ``card``) as a model step: windows over the history, overlap-add
+    (as :class:`WindowedStep`), every performer's style inputs; output ``lookahead`` model frames
+    behind the input."""
+
+    aligned = True
+
+    def __init__(self, path: Path, card: dict, threads: int, window: int | None, hop: int,
+                 lookahead: int) -> None:
+        check_card(card, path, "saae")
+        self.card, self.variant = card, card["variant"]
+        if self.variant not in ("model1", "model2"):
+            raise MotionStyleError(f"{path}: a plain SAAE has no style input, so it cannot restyle (it is the "
+                                   "generative baseline: runtime.saae.Sampler); use a model1 or model2 model")
+        self.trained_window = int(card["window"])
+        self.window = self.trained_window if window is None else window
+        if not (isinstance(self.window, (int, np.integer)) and self.window >= 2):
+            raise MotionStyleError(f"window must be a whole number of frames, at least 2; got {window!r}")
+        if not (isinstance(hop, (int, np.integer)) and 1 <= hop <= self.window):
+            raise MotionStyleError(f"hop must be 1 to {self.window} frames (the window), got {hop!r}")
+        if not isinstance(lookahead, (int, np.integer)):
+            raise MotionStyleError(f"lookahead must be a whole number of frames, got {lookahead!r}")
+        self.hop, self.lookahead = int(hop), int(lookahead)
+        self.delay_frames = self.lookahead
+        self.decoder = OnnxModel(path, threads)
+        SAAE_DECODER.check(self.decoder.input_names, path, "SAAE decoder")
+        files = {k: model_path(str(path.with_name(name))) for k, name in card["files"].items()}
+        self.encoder = OnnxModel(files["encoder"], threads)
+        SAAE_ENCODER.check(self.encoder.input_names, files["encoder"], "SAAE encoder")
+        self.style_encoder = None
+        if self.variant == "model2":
+            self.style_encoder = OnnxModel(files["style_encoder"], threads)
+            SAAE_STYLE_ENCODER.check(self.style_encoder.input_names, files["style_encoder"], "SAAE style encoder")
+        self.model = _Restyler(self)
+        self.styles = list(card["styles"])
+        self.known = len(self.styles)
+        self._inputs = _style_table(card, "style_inputs")
+        layout = card["feature_layout"]
+        self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
+        self._fps = float(card["fps"])
+
+    def start(self, performers: int, blend_seconds: float) -> None:
+        self.performers, self.blend_seconds = performers, blend_seconds
+        # style inputs per performer and style: blended from _codes_from to _codes_to (WindowedStep)
+        self._codes_to = np.repeat(self._inputs[None], performers, axis=0)
+        self._codes_from = self._codes_to.copy()
+        self._code_progress = np.ones(performers)
+
+    def _code(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        """``(P, style_width)`` float32 style inputs for the window in ``_history``."""
+        target = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes())
+        self.model.alpha = alpha
+        if self.variant == "model1" or (alpha >= 1.0).all():
+            return target.astype(np.float32)
+        own = self.style_encoder.run(features=self._history)["style_code"]
+        return (own + alpha * (target - own)).astype(np.float32)
+
+
+class SaaeSession(StreamSession):
+    """The SAAE restyler over a stream of ``performers`` performers (see the module docstring and
+    :class:`~motion_style_ros.runtime.stream.StreamSession`); ``window``, ``hop``, ``lookahead`` as
+    for the ST-GCN session. ``bank`` is taken for the node's sake and must be None (no style bank)."""
+
+    def __init__(
+        self,
+        model: str | Path = DEFAULT_MODEL,
+        performers: int = 1,
+        input_fps: float | None = None,
+        blend_seconds: float = DEFAULTS["blend_seconds"],
+        threads: int = 1,
+        gap_seconds: float = DEFAULTS["gap_seconds"],
+        follow_seconds: float | None = DEFAULTS["follow_seconds"],
+        window: int | None = None,
+        hop: int = DEFAULTS["hop"],
+        lookahead: int = DEFAULTS["lookahead"],
+        foot_lock: bool = DEFAULTS["foot_lock"],
+        ground: bool = DEFAULTS["ground"],
+        pipelined: bool = DEFAULTS["pipelined"],
+        conform: bool = DEFAULTS["conform"],
+        bank: str | Path | None = None,
+        phase_seconds: float = 0.0,
+    ) -> None:
+        if bank is not None:
+            raise MotionStyleError("the SAAE backend has no style bank (its styles are its training labels)")
+        path = model_path(str(model))
+        card = read_card(path)
+        self.windows = SaaeStep(path, card, threads, window, hop, lookahead)
+        w = self.windows
+        self.window, self.hop, self.lookahead, self.variant = w.window, w.hop, w.lookahead, w.variant
+        super().__init__(card, w, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
+                         foot_lock, ground, pipelined, conform, phase_seconds)
+
+    def style_inputs(self, performer: int = 0) -> np.ndarray:
+        """``(S, style_width)``: the performer's style input for each style as it is now."""
+        return self.windows.current_codes()[self.controls.which(performer)]
+
+    def set_reference(self, motion: Motion, style: str | None = None, performer: int | None = None) -> str:
+        """Model2: move like this recording. The clip's style code becomes the input of ``style``
+        (by default the style its classifier recognises), which becomes the target; returns it."""
+        return self.use_reference(*self.reference_codes(motion), style, performer)
+
+    def use_reference(self, code: np.ndarray, logits: np.ndarray, style: str | None = None,
+                      performer: int | None = None) -> str:
+        """:meth:`set_reference` with the clip's :meth:`reference_codes` already made."""
+        k = int(np.argmax(logits)) if style is None else self.controls.style_index(style)
+        which = self.controls.which(performer)
+        self.catch_up()
+        self.windows.blend_to(which, code, k)
+        self.set_style(self.styles[k], performer)
+        return self.styles[k]
+
+    def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+        """A clip's style code ``(style_dim,)`` and style logits ``(S,)``, each the mean over its
+        windows (half overlapping), or a one-line reason why the clip cannot serve as a reference."""
+        if self.windows.style_encoder is None:
+            raise MotionStyleError("a reference clip needs a Model2 SAAE (a style encoder); this is "
+                                   f"{self.variant}, restyled by label only")
+        if not isinstance(motion, Motion):
+            raise MotionStyleError(f"a reference must be a Motion, got {type(motion).__name__}")
+        if motion.skeleton.names != self.skeleton.names:
+            raise MotionStyleError("reference clip not on the canonical skeleton (retarget it first: "
+                                   "motion-style retarget)")
+        if not (np.isfinite(motion.rotations).all() and np.isfinite(motion.positions).all()):
+            raise MotionStyleError("reference clip has NaN or infinite values")
+        if motion.fps != self.fps:
+            motion = resample(motion, self.fps)
+        motion = self.conformed(motion)
+        w = self.windows.trained_window
+        if motion.n_frames < w:
+            raise MotionStyleError(f"reference clip too short: {motion.n_frames} frames at {self.fps:g} fps; "
+                                   f"it needs at least {w} ({w / self.fps:.1f} s)")
+        features = encode(motion).astype(np.float32)
+        starts = range(0, motion.n_frames - w + 1, max(w // 2, 1))
+        out = self.windows.style_encoder.run(features=np.stack([features[s : s + w] for s in starts]))
+        return out["style_code"].mean(axis=0), out["logits"].mean(axis=0)
+
+
+class Sampler:
+    """Endless new motion of one style: content codes from the prior N(0, I) (a fixed stream of
+    them from ``seed``), decoded with the style's input (Model2: its mean style code, moved by
+    ``spread`` times its per-style std at random; Model1: its one-hot; the plain SAAE: none). Windows
+    follow every ``window // 2`` frames; of ``candidates`` decoded at once the one whose first half
+    is nearest the last window's second half is taken, and overlap-add (raised-cosine weights that
+    sum to one at half overlap) blends the two over that half: the join is spread over half a
+    window instead of happening in one frame."""
+
+    def __init__(self, model: str | Path = DEFAULT_MODEL, style: str | None = None, seed: int = 0,
+                 candidates: int = 8, spread: float = 1.0, threads: int = 1) -> None:
+        self.path = model_path(str(model))
+        self.card = read_card(self.path)
+        check_card(self.card, self.path, "saae")
+        self.decoder = OnnxModel(self.path, threads)
+        SAAE_DECODER.check(self.decoder.input_names, self.path, "SAAE decoder")
+        self.styles = list(self.card["styles"])
+        self.fps = float(self.card["fps"])
+        self.window = int(self.card["window"])
+        self.hop = max(self.window // 2, 1)
+        self.content_dim = int(self.card["content_dim"])
+        if not (isinstance(candidates, int) and candidates >= 1):
+            raise MotionStyleError(f"candidates must be a whole number, at least 1; got {candidates!r}")
+        if not (isinstance(spread, (int, float)) and 0.0 <= spread <= 4.0):
+            raise MotionStyleError(f"spread must be a number from 0 to 4, got {spread!r}")
+        self.candidates, self.spread = candidates, float(spread)
+        self._inputs, self._spreads = _style_table(self.card, "style_inputs"), _style_table(self.card, "style_spread")
+        self.seed = int(seed)
+        latent(self.seed, 1)  # a one-line error now for a bad seed
+        self.set_style(style or self.card.get("neutral_style", self.styles[0]))
+        self.restart()
+
+    def set_style(self, style: str) -> None:
+        """The style of the windows drawn from now on (the current one blends out over half a window)."""
+        if style not in self.styles:
+            raise MotionStyleError(f"unknown style {style!r}; this model knows: {', '.join(self.styles)}")
+        self.style = style
+
+    def restart(self) -> None:
+        """Start the stream again from its seed's first window."""
+        self._count = 0  # windows drawn
+        self._ola = OverlapAdd(self.window, self.window - 1, 1, int(self.card["feature_layout"]["rot6d"][1]))
+        self._last: np.ndarray | None = None  # the last window taken
+        self._ready: list[np.ndarray] = []
+        self._pose_decoder: StreamDecoder | None = None
+        self.windows: list[np.ndarray] = []  # every window taken (for tests and figures), newest last
+
+    def _noise(self, size: int) -> np.ndarray:
+        """The next window's ``size`` standard normal numbers, the same on every machine."""
+        state = np.random.SeedSequence([self.seed, self._count]).generate_state(1, np.uint64)[0]
+        return latent(int(state >> np.uint64(1)), size)
+
+    def _draw(self) -> np.ndarray:
+        """The next window ``(window, n_out)``: the candidate that best continues the last one."""
+        k, width = self.candidates, self._inputs.shape[1]
+        noise = self._noise(k * (self.content_dim + width)).reshape(k, -1)
+        s = self.styles.index(self.style)
+        content = noise[:, : self.content_dim]
+        style = self._inputs[s] + self.spread * self._spreads[s] * noise[:, self.content_dim :]
+        out = self.decoder.run(content=content.astype(np.float32), style=style.astype(np.float32),
+                               position=_positions(self.window, self.window, k))["output"].astype(np.float64)
+        self._count += 1
+        if self._last is None:
+            return out[0]
+        overlap = self.window - self.hop
+        cost = ((out[:, :overlap] - self._last[None, self.hop :]) ** 2).sum(axis=(1, 2))
+        return out[int(np.argmin(cost))]
+
+    def frames(self, n: int) -> np.ndarray:
+        """The next ``n`` frames ``(n, n_out)`` of ``[root | rot6d]`` blocks (as the stylizers output)."""
+        while len(self._ready) < n:
+            self._last = self._draw()
+            self.windows.append(self._last)
+            self._ola.add(self._last[None])
+            for _ in range(self.hop):
+                self._ready.append(self._ola.frame(0)[0])
+                self._ola.shift()
+        out, self._ready = np.array(self._ready[:n]), self._ready[n:]
+        return out
+
+    def poses(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The next ``n`` frames as local rotations ``(n, J, 4)`` and pelvis positions ``(n, 3)`` of the
+        canonical skeleton, the trajectory integrated on from the last call's (from the origin,
+        facing +Z, at the start): what a performer node publishes."""
+        if self._pose_decoder is None:
+            self._pose_decoder = StreamDecoder(1, self.fps)
+        poses = [self._pose_decoder(f[None]) for f in self.frames(n)]
+        return np.concatenate([q for q, _ in poses]), np.concatenate([p for _, p in poses])
+
+    def motion(self, seconds: float) -> Motion:
+        """The next ``seconds`` of the stream as a clip (its own trajectory, from the origin)."""
+        return decode(self.frames(max(round(seconds * self.fps), 2)), self.fps)
