@@ -90,6 +90,38 @@ def add_parser(subparsers):
                             "until their joints differ by M metres on average (default: on the "
                             "normalised output channels, uncapped)")
     stgcn.set_defaults(func=run_stgcn)
+    saae = targets.add_parser(
+        "saae", help="the sequence adversarial autoencoder: plain SAAE, Model1, Model2 (models/saae_*.onnx)",
+        description="Train the sequence adversarial autoencoder of the ESANN 2018 seed (issue 21) on "
+                    "Bandai dataset-2 train takes: a GRU encoder and decoder whose content codes a "
+                    "discriminator pushes towards N(0, I); Model1's decoder takes the style label, "
+                    "Model2's a style code of --style-dim dims from the encoder; both hide the style "
+                    "from the content code through a reversed-gradient style discriminator. Exports "
+                    "the decoder, encoder (and Model2's style encoder) to ONNX with the card, as "
+                    "saae_plain, saae_model1 or saae_model2_<d>d. Checkpoints every few minutes to "
+                    "~/.cache/motion_style_ros/checkpoints/<that name>_<seed>/ (with losses.jsonl); "
+                    "--resume continues a stopped run, and the time and iteration budgets count over "
+                    "all resumed runs, so the same command finishes the job.",
+    )
+    saae.add_argument("--variant", choices=("saae", "model1", "model2"), default="model2",
+                      help="saae: the plain baseline (no style input); model1: decoder takes the "
+                           "style label; model2: a style code (default: model2)")
+    saae.add_argument("--style-dim", type=int, default=5, metavar="D",
+                      help="Model2's style code size, 2 to 5 in the paper (default: 5)")
+    saae.add_argument("--minutes", type=float, default=110.0,
+                      help="training time budget in minutes, over all resumed runs (default: 110)")
+    saae.add_argument("--iterations", type=int, default=None,
+                      help="stop after this many iterations in total (default: no limit)")
+    saae.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    saae.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
+    _data_flags(saae)
+    saae.add_argument("--resume", action="store_true",
+                      help="continue from the checkpoint of this variant and seed if there is one "
+                           "(without it, an earlier run's checkpoint is discarded)")
+    saae.add_argument("--out", default=None,
+                      help="folder for saae_*.onnx and the card (default: the shipped models/)")
+    _run_flags(saae)
+    saae.set_defaults(func=run_saae)
 
 
 _DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
@@ -270,4 +302,36 @@ def run_stgcn(args) -> int:
           f"RMS), style encoder accuracy {val['val_style_acc']:.2f}, transfers recognised "
           f"{val['val_transfer_style_acc']:.2f}; ONNX vs torch "
           f"{card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
+    return 0
+
+
+def run_saae(args) -> int:
+    from motion_style_ros.errors import MotionStyleError
+
+    saae = _training("saae")
+    if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
+        raise MotionStyleError("--minutes must be positive and --iterations at least 1")
+    if not 1 <= args.style_dim <= 64:
+        raise MotionStyleError(f"--style-dim must be 1 to 64 (the paper's are 2 to 5), got {args.style_dim}")
+    out = _output(args)
+    fields, recipe = _data_fields(args)
+    if fields["unlabelled"]:
+        raise MotionStyleError("--unlabelled: the SAAE trainer does not use unlabelled clips; 'train recurrent' does")
+    command = (f"motion-style train saae --variant {args.variant} --style-dim {args.style_dim} "
+               f"--minutes {args.minutes:g} --seed {args.seed}{recipe}"
+               + (f" --iterations {args.iterations}" if args.iterations is not None else ""))
+    cfg = saae.Config(seed=args.seed, variant=args.variant, style_dim=args.style_dim, **fields)
+    card = saae.train(cfg, out, args.minutes, args.iterations, args.resume, threads=args.threads,
+                      command=command + " --resume", device=args.device, licence=args.licence)
+    if card is None:  # not rank 0 of a torchrun
+        return 0
+    history = card["training"]["history"]
+    val = history["val"][-1]
+    extra = "".join(f", {label} {val[key]:.2f}" for key, label in (
+        ("val_content_style_acc", "style read from the content code"),
+        ("val_style_code_acc", "from the style code"),
+        ("val_transfer_style_acc", "transfers recognised")) if key in val)
+    print(f"{card['name']}: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
+          f"val reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS){extra}; "
+          f"ONNX vs torch {card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
     return 0
