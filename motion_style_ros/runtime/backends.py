@@ -42,6 +42,16 @@ BACKENDS: dict[str, Backend] = {
                      latent_seeds=True, reference_clips=True, style_bank=True, lookahead=True),
 }
 
+# Backends whose code is in but whose model is not trained and shipped yet. One moves into BACKENDS
+# with its model: every backend there has a shipped model and an offline stylizer
+# (test/test_backends.py), and the node, stylize, bench and eval offer it.
+PENDING: dict[str, Backend] = {
+    "saae": Backend("saae", "sequence adversarial autoencoder (ESANN 2018): windows re-decoded with a style "
+                    "label (Model1) or a reference clip's style code (Model2), blended by overlap-add",
+                    "saae_model2_5d.onnx", "motion_style_ros.runtime.saae:SaaeSession",
+                    reference_clips=True, lookahead=True),
+}
+
 
 def backend(name: str) -> Backend:
     """The backend called ``name``, or a one-line error naming the ones there are."""
