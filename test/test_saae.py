@@ -127,6 +127,14 @@ def test_reference_clips_move_model2s_style_input_and_only_model2_takes_them(mod
             walk.skeleton, walk.rotations[:10], walk.positions[:10, walk.skeleton.pelvis], walk.fps))
 
 
+def test_the_backend_entry_names_this_session():
+    from motion_style_ros.runtime.backends import PENDING
+
+    spec = PENDING["saae"]
+    assert spec.session_class() is SaaeSession and spec.reference_clips and not spec.latent_seeds
+    assert spec.settings({"hop": 4, "lookahead": 8, "seed_spread": 1.0}) == {"hop": 4, "lookahead": 8}
+
+
 def test_a_plain_saae_samples_but_does_not_restyle(tmp_path):
     path = tmp_path / "plain.onnx"
     card = saae.export_random_model(path, ["active", "elderly", "normal"], "saae")

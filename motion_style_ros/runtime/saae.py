@@ -29,13 +29,15 @@ from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime.backends import BACKENDS, PENDING
 from motion_style_ros.runtime.contract import SAAE_DECODER, SAAE_ENCODER, SAAE_STYLE_ENCODER, check_card
 from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.stream import StreamSession
 from motion_style_ros.runtime.windowed import WindowedStep, latent
 
-DEFAULT_MODEL = "saae_model2_5d.onnx"  # the paper's best (Table 1, 2); trained by 'motion-style train saae'
+# the paper's best (its Tables 1 and 2), Model2 with a 5-dim style code: 'motion-style train saae'
+DEFAULT_MODEL = {**PENDING, **BACKENDS}["saae"].default_model
 
 
 def _positions(frames: int, window: int, batch: int) -> np.ndarray:
