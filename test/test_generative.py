@@ -57,3 +57,18 @@ def test_windows_become_normalised_vectors_and_bad_shapes_are_one_line():
         gen.g2t(np.zeros((2, 3)), np.zeros((2, 4)))
     with pytest.raises(MotionStyleError, match="sigma"):
         gen.parzen_log_likelihood(np.zeros((1, 2)), np.zeros((1, 2)), 0.0)
+
+
+def test_the_papers_figures_rank_a_faithful_generator_above_a_collapsed_one():
+    rng = np.random.default_rng(2)
+    clips = [np.cumsum(rng.normal(size=(60, 3)), axis=0) for _ in range(12)]
+    windows = gen.clip_windows(clips, 8, 4, channels=2)
+    assert windows.shape == (12 * 14, 8, 2)
+    assert np.array_equal(windows[1], clips[0][4:12, :2])
+    test, val, faithful = windows[0::3], windows[1::3], windows[2::3]
+    collapsed = np.repeat(faithful[:1], len(faithful), axis=0)
+    good, bad = gen.measures(faithful, test, val), gen.measures(collapsed, test, val)
+    assert good["parzen_log_likelihood"] > bad["parzen_log_likelihood"]
+    assert good["t2g"] < bad["t2g"] and good["dims"] == 16
+    with pytest.raises(MotionStyleError, match="no clip"):
+        gen.clip_windows(clips, 61, 1)

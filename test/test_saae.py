@@ -14,7 +14,8 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 from motion_style_ros.models.saae import Critic, Decoder, Encoder, positions, reverse, tiny
 from motion_style_ros.runtime.contract import check_card
-from motion_style_ros.runtime.saae import SaaeSession, Sampler
+from motion_style_ros.evaluation import generative
+from motion_style_ros.runtime.saae import SaaeSession, Sampler, prior_windows
 from motion_style_ros.training import data as training_data
 from motion_style_ros.training import saae
 
@@ -164,6 +165,17 @@ def test_the_samplers_joins_are_no_seams(models):
     assert q.shape == (30, 22, 4) and p.shape == (30, 3) and np.isfinite(q).all()
     with pytest.raises(MotionStyleError, match="unknown style"):
         again.set_style("sleepy")
+
+
+def test_the_papers_measures_of_prior_windows_against_real_ones(models, data):
+    generated, which = prior_windows(models["model1"], 40, seed=1, styles=["elderly", "normal"])
+    assert generated.shape == (40, 16, 130) and set(which) == {1, 5}
+    assert not np.array_equal(generated[0], generated[2])  # every window its own prior sample
+    real = generative.clip_windows(data.splits["val"].features, 16, 16, channels=130)
+    figures = generative.measures(generated, real[::2], real[1::2])
+    assert np.isfinite(figures["parzen_log_likelihood"]) and figures["dims"] == 16 * 130
+    # untrained windows are far from real ones; real windows are nearer each other than to them
+    assert figures["g2t"] > generative.measures(real[1::2][:40], real[::2], real[1::2])["g2t"]
 
 
 def test_training_reduces_reconstruction_resumes_identically_and_exports(data, walk, tmp_path):

@@ -299,3 +299,29 @@ class Sampler:
     def motion(self, seconds: float) -> Motion:
         """The next ``seconds`` of the stream as a clip (its own trajectory, from the origin)."""
         return decode(self.frames(max(round(seconds * self.fps), 2)), self.fps)
+
+
+def prior_windows(model: str | Path, count: int, seed: int = 0, styles: list[str] | None = None,
+                  spread: float = 1.0, threads: int = 1, batch: int = 256) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` windows ``(count, window, n_out)`` decoded from content codes drawn from the prior,
+    their styles taken in turn from ``styles`` (default: all the model's) with the style inputs as the
+    :class:`Sampler` takes them, and their style indices ``(count,)``: what the paper's generative
+    measures compare with real windows (``evaluation.generative.measures``)."""
+    path = model_path(str(model))
+    card = read_card(path)
+    check_card(card, path, "saae")
+    decoder = OnnxModel(path, threads)
+    names = list(card["styles"])
+    chosen = [names.index(s) for s in (styles or names)]
+    inputs, spreads = _style_table(card, "style_inputs"), _style_table(card, "style_spread")
+    window, c = int(card["window"]), int(card["content_dim"])
+    rng = np.random.Generator(np.random.PCG64(seed))
+    which = np.array(chosen)[np.arange(count) % len(chosen)]
+    out = []
+    for start in range(0, count, batch):
+        k = which[start : start + batch]
+        z = rng.standard_normal((len(k), c))
+        style = inputs[k] + spread * spreads[k] * rng.standard_normal((len(k), inputs.shape[1]))
+        out.append(decoder.run(content=z.astype(np.float32), style=style.astype(np.float32),
+                               position=_positions(window, window, len(k)))["output"])
+    return np.concatenate(out).astype(np.float64), which
