@@ -98,6 +98,7 @@ class Config(DataConfig):
     w_root: float = 1.0
     std_floor: float = 0.05
     means_per_style: int = 64  # train windows averaged into each style's exported mean feature
+    val_windows: int = 64  # fixed val windows of the validation figures
 
     def networks(self, styles: tuple[str, ...]) -> MostConfig:
         return MostConfig(styles, window=self.window, dim=self.dim, heads=self.heads,
@@ -108,7 +109,7 @@ class Config(DataConfig):
 def tiny_config(**changes) -> Config:
     """A small, fast configuration with the real data path (tests)."""
     return replace(Config(window=16, dim=8, heads=2, enc_blocks=1, dec_blocks=1, batch=4,
-                          means_per_style=4), **changes)
+                          means_per_style=4, val_windows=16), **changes)
 
 
 def style_pairs(clips: Clips, length: int, styles: np.ndarray, rng: np.random.Generator
@@ -190,7 +191,7 @@ class Trainer(ResumableTrainer):
         self.opt_d = torch.optim.Adam(self.dis.parameters(), lr=cfg.lr_dis, betas=cfg.betas,
                                       weight_decay=cfg.weight_decay)
         val_rng = np.random.default_rng([cfg.seed, 3])
-        x, style, _ = windows(data.splits["val"], cfg.window, 64, val_rng)
+        x, style, _ = windows(data.splits["val"], cfg.window, cfg.val_windows, val_rng)
         target = other_styles(style, len(data.styles), val_rng)
         s1, s2, _ = style_pairs(data.splits["val"], cfg.window, target.numpy(), val_rng)
         self.val_windows = tuple(t.to(self.device) for t in (x, style, target, s1, s2))

@@ -1,0 +1,183 @@
+"""MoST backend (issue 20): the exported graphs against torch on a real clip, the window step
+through the session on real Bandai clips (the reference's features computed once), a few real
+training iterations with resume and export, and bad references rejected (tiny networks, real
+Bandai windows)."""
+
+import json
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch", reason="tests the torch networks: pip install '.[train]'")
+ort = pytest.importorskip("onnxruntime")
+
+from motion_style_ros.core.features import encode
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import bvh
+from motion_style_ros.io.datasets import ClipInfo, load_clip
+from motion_style_ros.models.most import PARTS, MoST, Step, tiny
+from motion_style_ros.runtime.contract import MOST, check_card
+from motion_style_ros.runtime.most import MostSession
+from motion_style_ros.training import data as training_data
+from motion_style_ros.training import export as shared_export
+from motion_style_ros.training import most
+
+BANDAI = "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data"
+
+
+def bandai(datasets, name: str) -> Motion:
+    return load_clip(ClipInfo("bandai-2", datasets / BANDAI / f"{name}.bvh", name, "", "", "", ""))
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    """Tiny networks: one torch thread is faster than two on a busy machine (no waiting for a
+    second thread at every operation)."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope="module")
+def data(datasets):
+    return training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
+
+
+@pytest.fixture(scope="module")
+def clip(data):
+    """A real val take, ``(T, 260)`` raw features."""
+    return max(data.splits["val"].features, key=len)[:96]
+
+
+@pytest.fixture(scope="module")
+def model(data):
+    """A random tiny model with the real normalisation."""
+    mean, std = training_data.normalisation(data.splits["train"].features, 0.05)
+    torch.manual_seed(0)
+    return MoST(tiny(data.styles), mean, std).eval()
+
+
+@pytest.fixture(scope="module")
+def exported(model, data, tmp_path_factory):
+    """The tiny model written as a backend's files, every style's mean features from train windows."""
+    means = most.style_means(model, data.splits["train"], len(data.styles), 4, 0)
+    path = tmp_path_factory.mktemp("most") / "most.onnx"
+    most.write_model(model, path, {"data": "test"}, None, means)
+    return path
+
+
+def test_onnx_matches_torch_on_a_real_clip(model, clip, tmp_path):
+    path = tmp_path / "most.onnx"
+    means = (np.zeros((len(model.cfg.styles), len(PARTS), model.cfg.dim), np.float32),) * 2
+    most.export_onnx(model, means, path)
+    assert most.parity(model, path, clip) < 1e-4
+    # the output depends on the style motion and on alpha, by far more than the tolerance
+    x = clip[None, :16].astype(np.float32)
+    with torch.no_grad():
+        enc = model.encoder(torch.from_numpy(clip[None, 48:64]))
+        style, pooled = enc[0].numpy(), enc[2].numpy()
+    outs = {a: shared_export.run_onnx(path, MOST, x, style, pooled, np.full((1, 1), a, np.float32))[0][0]
+            for a in (0.0, 1.0)}
+    assert np.abs(outs[0.0] - outs[1.0]).max() > 1e-3
+    d6 = outs[1.0][:, 4:].reshape(16, 21, 6)  # rotations come out orthonormal
+    assert np.allclose(np.linalg.norm(d6[..., :3], axis=-1), 1, atol=1e-5)
+    assert np.allclose((d6[..., :3] * d6[..., 3:]).sum(-1), 0, atol=1e-5)
+    # any window length: the frame encoding is made inside the graph
+    long = clip[None, :40].astype(np.float32)
+    (got,) = shared_export.run_onnx(path, MOST, long, style, pooled, np.ones((1, 1), np.float32))
+    with torch.no_grad():
+        want = Step(model)(*map(torch.from_numpy, (long, style, pooled, np.ones((1, 1), np.float32)))).numpy()
+    assert got.shape == (1, 40, 130) and np.abs(got - want).max() < 1e-4
+
+
+def test_the_session_streams_a_real_clip_with_the_reference_encoded_once(exported, datasets):
+    walk = bandai(datasets, "dataset-2_walk-turn-right_masculine_003")
+    punch = bandai(datasets, "dataset-2_raise-up-both-hands_youthful_001")  # another action as the reference
+    session = MostSession(exported, window=16, hop=4, lookahead=4)
+    calls = {"style": 0, "step": 0}
+    for name, key in ((session.style_encoder, "style"), (session.model, "step")):
+        run = name.run
+        name.run = lambda *a, _run=run, _key=key, **k: (calls.__setitem__(_key, calls[_key] + 1), _run(*a, **k))[1]
+    means = session.features().copy()
+    assert session.set_reference(punch, style="elderly") == "elderly"
+    assert calls["style"] == 1
+    k = session.styles.index("elderly")
+    session.steps._progress[:] = 1.0  # the blend done
+    assert np.abs(session.features()[k] - means[k]).max() > 1e-6  # the clip's features, not the mean
+    assert np.array_equal(session.features()[k - 1], means[k - 1])  # the other styles keep theirs
+    clip = walk[:90]
+    out = session.run(clip, "elderly", alpha=1.0)
+    assert out.n_frames == clip.n_frames
+    assert np.isfinite(out.rotations).all() and np.isfinite(out.positions).all()
+    assert calls["style"] == 1 and calls["step"] >= 90 // 4  # the reference was not encoded again
+    # target_style through the styles' means: another style gives another motion
+    other = session.run(clip, "youthful", alpha=1.0)
+    assert np.abs(encode(other)[:, 4:130] - encode(out)[:, 4:130]).max() > 1e-4
+    assert calls["style"] == 1
+
+
+def test_training_reduces_reconstruction_resumes_identically_and_exports(data, clip, tmp_path):
+    cfg = most.tiny_config(lr=1e-3)
+    trainer = most.Trainer(cfg, data, tmp_path / "a", progress=False)
+    before = trainer.validate(trainer.most)["val_rec"]
+    trainer.run(iterations=16, log_every=4, val_every=8)
+    after = trainer.validate(trainer.most)["val_rec"]
+    assert after < 0.9 * before, (before, after)
+    log = [json.loads(line) for line in trainer.log.read_text().splitlines()]
+    losses = [e for e in log if "dis" in e]
+    assert [e["iteration"] for e in losses] == [4, 8, 12, 16]
+    assert all(np.isfinite(v) for e in losses for v in e.values())
+
+    # 4 iterations at once == 2, a checkpoint, a new trainer resuming, 2 more
+    whole = most.Trainer(cfg, data, tmp_path / "b", progress=False)
+    whole.run(iterations=4, log_every=1, val_every=1000)
+    first = most.Trainer(cfg, data, tmp_path / "c", progress=False)
+    first.run(iterations=2, log_every=1, val_every=1000)
+    resumed = most.Trainer(cfg, data, tmp_path / "c", progress=False)
+    assert resumed.resume() and resumed.state["iteration"] == 2
+    resumed.run(iterations=4, log_every=1, val_every=1000)
+    for name in ("most", "dis", "most_ema"):
+        a, b = getattr(whole, name).state_dict(), getattr(resumed, name).state_dict()
+        assert all(torch.equal(a[k], b[k]) for k in a), name
+
+    card = most.train(cfg, tmp_path / "models", iterations=5, resume=True, checkpoints=tmp_path / "c",
+                      data=data, progress=False, val_every=1000, threads=1)
+    assert card["training"]["history"]["iterations"] == 5
+    assert card["training"]["onnx_torch_max_abs_diff"] < 1e-4
+    check_card(card, tmp_path / "models" / "most.onnx", "most")
+    assert card["kind"] == "most" and card["styles"] == list(data.styles)
+    for name in ("most.onnx", "most.json", "most_style_encoder.onnx", "most_style_means.npz"):
+        assert (tmp_path / "models" / name).is_file()
+    with np.load(tmp_path / "models" / "most_style_means.npz") as means:
+        assert means["style"].shape == (len(data.styles), len(PARTS), cfg.dim)
+        assert np.abs(means["style"][0] - means["style"][1]).max() > 0  # a mean per style
+
+
+def test_style_pairs_differ_in_content_where_the_style_has_several(data):
+    rng = np.random.default_rng(0)
+    styles = np.arange(len(data.styles)).repeat(3)
+    a, b, differ = most.style_pairs(data.splits["train"], 16, styles, rng)
+    assert a.shape == b.shape == (len(styles), 16, 260) and differ.all()
+
+
+def test_bad_references_are_rejected_with_a_reason(exported, datasets, tmp_path):
+    walk = bandai(datasets, "dataset-2_walk-turn-right_masculine_003")
+    session = MostSession(exported, window=16, lookahead=8)
+    with pytest.raises(MotionStyleError, match=r"too short: 10 frames at 30 fps; it needs at least 16"):
+        session.set_reference(walk[:10])
+    cmu = bvh.read(next((datasets / "cmu").rglob("*.bvh"))).to_motion()
+    with pytest.raises(MotionStyleError, match="must be on the canonical skeleton"):
+        session.set_reference(cmu)
+    rotations = walk.rotations.copy()
+    rotations[5, 3] = np.nan
+    broken = Motion.from_rotations(walk.skeleton, rotations, walk.root_positions, walk.fps)
+    with pytest.raises(MotionStyleError, match="NaN"):
+        session.set_reference(broken)
+    with pytest.raises(MotionStyleError, match="a reference must be a Motion"):
+        session.set_reference("walk.bvh")
+    with pytest.raises(MotionStyleError, match="style bank needs backend stgcn"):
+        MostSession(exported, bank=tmp_path / "bank.json")
+    # a good clip is recognised as one of the styles and made the target
+    assert session.set_reference(walk) in session.styles
