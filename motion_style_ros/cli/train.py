@@ -122,6 +122,30 @@ def add_parser(subparsers):
                       help="folder for saae_*.onnx and the card (default: the shipped models/)")
     _run_flags(saae)
     saae.set_defaults(func=run_saae)
+    most = targets.add_parser(
+        "most", help="the MoST reference-clip stylizer (models/most*.onnx)",
+        description="Train MoST (Kim et al. 2024: Siamese transformer encoder, part-attentive style "
+                    "modulator, AdaIN transformer generator, discriminator) on Bandai dataset-2 train "
+                    "takes, then export the streamed step and the reference style encoder to ONNX "
+                    "with every style's mean features and the model card. Checkpoints every few "
+                    "minutes to ~/.cache/motion_style_ros/checkpoints/most_<seed>/ (with "
+                    "losses.jsonl); --resume continues a stopped run, and the time and iteration "
+                    "budgets count over all resumed runs, so the same command finishes the job.",
+    )
+    most.add_argument("--minutes", type=float, default=100.0,
+                      help="training time budget in minutes, over all resumed runs (default: 100)")
+    most.add_argument("--iterations", type=int, default=None,
+                      help="stop after this many iterations in total (default: no limit)")
+    most.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    most.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
+    _data_flags(most)
+    most.add_argument("--resume", action="store_true",
+                      help="continue from the checkpoint of this seed if there is one "
+                           "(without it, an earlier run's checkpoint is discarded)")
+    most.add_argument("--out", default=None,
+                      help="folder for most*.onnx, the style means and the card (default: the shipped models/)")
+    _run_flags(most)
+    most.set_defaults(func=run_most)
 
 
 _DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
@@ -334,4 +358,32 @@ def run_saae(args) -> int:
     print(f"{card['name']}: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
           f"val reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS){extra}; "
           f"ONNX vs torch {card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
+    return 0
+
+
+def run_most(args) -> int:
+    from motion_style_ros.errors import MotionStyleError
+
+    most = _training("most")
+    if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
+        raise MotionStyleError("--minutes must be positive and --iterations at least 1")
+    out = _output(args)
+    fields, recipe = _data_fields(args)
+    if fields["unlabelled"]:
+        raise MotionStyleError("--unlabelled: the MoST trainer does not restyle unlabelled clips; "
+                               "'train recurrent' does")
+    command = f"motion-style train most --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
+        f" --iterations {args.iterations}" if args.iterations is not None else "")
+    card = most.train(most.Config(seed=args.seed, **fields), out, args.minutes, args.iterations, args.resume,
+                      threads=args.threads, command=command + " --resume", device=args.device,
+                      licence=args.licence)
+    if card is None:  # not rank 0 of a torchrun
+        return 0
+    history = card["training"]["history"]
+    val = history["val"][-1]
+    print(f"most: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
+          f"val reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS), "
+          f"disentanglement {val['val_disentangle']:.3f}, transfers nearest their style "
+          f"{val['val_transfer_style_acc']:.2f}; ONNX vs torch "
+          f"{card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
     return 0
