@@ -50,6 +50,9 @@ PENDING: dict[str, Backend] = {
                     "label (Model1) or a reference clip's style code (Model2), blended by overlap-add",
                     "saae_model2_5d.onnx", "motion_style_ros.runtime.saae:SaaeSession",
                     reference_clips=True, lookahead=True),
+    "most": Backend("most", "MoST (Kim et al. 2024): windows restyled like a reference clip of any action or a "
+                    "style's mean features, blended by overlap-add", "most.onnx",
+                    "motion_style_ros.runtime.most:MostSession", reference_clips=True, lookahead=True),
 }
 
 
