@@ -17,6 +17,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 from motion_style_ros.models.most import PARTS, MoST, Step, tiny
+from motion_style_ros.runtime.backends import PENDING
 from motion_style_ros.runtime.contract import MOST, check_card
 from motion_style_ros.runtime.most import MostSession
 from motion_style_ros.training import data as training_data
@@ -155,6 +156,16 @@ def test_training_reduces_reconstruction_resumes_identically_and_exports(data, c
         assert np.abs(means["style"][0] - means["style"][1]).max() > 0  # a mean per style
 
 
+def test_the_registry_entry_makes_sessions_as_the_node_does(exported):
+    spec = PENDING["most"]
+    assert spec.reference_clips and spec.lookahead and not spec.latent_seeds
+    # the node's session settings for a windowed backend (runtime.stylizer_settings.sessions)
+    common = {"input_fps": 120.0, "blend_seconds": 0.3, "threads": 1, "follow_seconds": 2.0,
+              "foot_lock": True, "pipelined": True, "window": None, "hop": 4, "lookahead": 8, "bank": None}
+    session = spec.session_class()(exported, **spec.settings(common), phase_seconds=1 / 120)
+    assert session.window == 16 and session.latency == pytest.approx(8 / 30 + 1 / 30 - 1 / 120 + 1 / 120)
+
+
 def test_style_pairs_differ_in_content_where_the_style_has_several(data):
     rng = np.random.default_rng(0)
     styles = np.arange(len(data.styles)).repeat(3)
@@ -179,5 +190,7 @@ def test_bad_references_are_rejected_with_a_reason(exported, datasets, tmp_path)
         session.set_reference("walk.bvh")
     with pytest.raises(MotionStyleError, match="style bank needs backend stgcn"):
         MostSession(exported, bank=tmp_path / "bank.json")
+    with pytest.raises(MotionStyleError, match="lookahead must be 0 to 15 frames"):
+        MostSession(exported, window=16, lookahead=16)
     # a good clip is recognised as one of the styles and made the target
     assert session.set_reference(walk) in session.styles
