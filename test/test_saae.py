@@ -11,10 +11,17 @@ torch = pytest.importorskip("torch", reason="tests the torch networks: pip insta
 ort = pytest.importorskip("onnxruntime")
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.io.datasets import ClipInfo, load_clip
-from motion_style_ros.models.saae import Critic, Decoder, Encoder, positions, reverse, tiny
-from motion_style_ros.runtime.contract import check_card
 from motion_style_ros.evaluation import generative
+from motion_style_ros.io.datasets import ClipInfo, load_clip
+from motion_style_ros.models.saae import (
+    Critic,
+    Decoder,
+    Encoder,
+    positions,
+    reverse,
+    tiny,
+)
+from motion_style_ros.runtime.contract import check_card
 from motion_style_ros.runtime.saae import SaaeSession, Sampler, prior_windows
 from motion_style_ros.training import data as training_data
 from motion_style_ros.training import saae

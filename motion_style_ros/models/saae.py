@@ -19,13 +19,15 @@ style transfer between motion capture sequences"): plain SAAE, Model1 and Model2
   so the style code carries the style; it is exported with the style encoder as its classifier.
 
 Sizes (:class:`SaaeConfig` defaults) and why. The paper gives none but its windows: 200 frames of
-~120 fps Emilya motion (1.7 s), 70-dim frames. Here a window is 48 frames at 30 fps (1.6 s, the
-ST-GCN backend's window, so both stream with the same hop and lookahead), frames are 260 features in
-and 130 out. A GRU of 256 units each way in the encoder and one of 256 in the decoder, a 32-dim
-content code and 128-wide critics come to ~1.2 M parameters: at batch 32 that is a few iterations a
-second on 2 CPU cores, so a 2-hour run sees ~10^4 iterations, some 3 x 10^5 windows (the paper saw
-~8 x 10^4 windows per epoch). GRUs rather than LSTMs: a third fewer weights for the same width, and
-the trainer's time goes into the recurrences.
+~120 fps Emilya motion (1.7 s), 70-dim frames. Here a window is 48 frames at 30 fps (1.6 s; the
+ST-GCN backend's window, so both stream with the same hop and lookahead), frames are 260 features
+in and 130 out. A GRU of 256 units each way in the encoder and one of 256 in the decoder with a
+32-dim content code come to 1.1 M parameters; the critics are small MLPs (128 wide). At batch 32
+with 2 threads this trained at 0.7-1.0 iterations a second on this machine's 2 cores while another
+training held them (the SAAE at nice 19; the idle rate is not measured; the ST-GCN trainer's is 1.5
+it/s at batch 8): 5-7 k iterations, some 2 x 10^5 windows, in two hours under that load, more on an
+idle machine (the paper saw 8 x 10^4 windows per epoch). GRUs rather than LSTMs: a third fewer
+weights for the same width, and the trainer's time goes into the recurrences.
 """
 
 from __future__ import annotations

@@ -30,7 +30,12 @@ from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.backends import BACKENDS, PENDING
-from motion_style_ros.runtime.contract import SAAE_DECODER, SAAE_ENCODER, SAAE_STYLE_ENCODER, check_card
+from motion_style_ros.runtime.contract import (
+    SAAE_DECODER,
+    SAAE_ENCODER,
+    SAAE_STYLE_ENCODER,
+    check_card,
+)
 from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.stream import StreamSession

@@ -21,7 +21,11 @@ from motion_style_ros.models.saae import (
     positions,
     tiny,
 )
-from motion_style_ros.runtime.contract import SAAE_DECODER, SAAE_ENCODER, SAAE_STYLE_ENCODER
+from motion_style_ros.runtime.contract import (
+    SAAE_DECODER,
+    SAAE_ENCODER,
+    SAAE_STYLE_ENCODER,
+)
 from motion_style_ros.training import export
 from motion_style_ros.training.data import NEUTRAL
 

@@ -41,8 +41,21 @@ from motion_style_ros.models.saae import (
     reverse,
     style_input,
 )
-from motion_style_ros.training.data import Data, DataConfig, data_tag, normalisation, style_windows, windows
-from motion_style_ros.training.loop import CHECKPOINTS, ResumableTrainer, card_record, fit, update_average
+from motion_style_ros.training.data import (
+    Data,
+    DataConfig,
+    data_tag,
+    normalisation,
+    style_windows,
+    windows,
+)
+from motion_style_ros.training.loop import (
+    CHECKPOINTS,
+    ResumableTrainer,
+    card_record,
+    fit,
+    update_average,
+)
 from motion_style_ros.training.losses import Losses, val_scores
 from motion_style_ros.training.saae.export import model_name, write_model
 
