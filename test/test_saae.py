@@ -224,3 +224,13 @@ def test_training_reduces_reconstruction_resumes_identically_and_exports(data, w
     # the exported model restyles a real clip through the session
     out = SaaeSession(path, input_fps=walk.fps, hop=8, lookahead=8).run(walk, "elderly")
     assert out.n_frames == walk.n_frames and np.isfinite(out.positions).all()
+
+
+def test_the_cycle_term_and_model1_train(data, tmp_path):
+    for variant in ("model1", "model2"):
+        trainer = saae.Trainer(saae.tiny_config(variant=variant, w_cycle=1.0), data, tmp_path / variant,
+                               progress=False)
+        trainer.run(iterations=2, log_every=2, val_every=2)
+        entry = json.loads(trainer.log.read_text().splitlines()[0])
+        assert entry["cycle"] > 0 and np.isfinite(entry["rec"])
+        assert ("val_transfer_style_acc" in trainer.state["val"][-1]) == (variant == "model2")
