@@ -173,6 +173,16 @@ def test_the_samplers_joins_are_no_seams(models):
     with pytest.raises(MotionStyleError, match="unknown style"):
         again.set_style("sleepy")
 
+    # chunks at a performer node's rate go on where the last ended: 1 s at 60 fps in pieces is the
+    # same as at once, and it follows the model's own frames
+    pieces = Sampler(models["model2"], "elderly", seed=3)
+    parts = [pieces.chunk(0.25, 60.0) for _ in range(4)]
+    whole = Sampler(models["model2"], "elderly", seed=3).chunk(1.0, 60.0)
+    joined = np.concatenate([m.rotations for m in parts])
+    assert whole.n_frames == 60 and np.abs(joined - whole.rotations).max() < 1e-9
+    model_rate = Sampler(models["model2"], "elderly", seed=3).poses(30)[0]
+    assert np.abs(np.abs((whole.rotations[::2] * model_rate).sum(-1)) - 1).max() < 1e-9
+
 
 def test_the_papers_measures_of_prior_windows_against_real_ones(models, data):
     generated, which = prior_windows(models["model1"], 40, seed=1, styles=["elderly", "normal"])

@@ -24,10 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
+from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.features import StreamDecoder, decode, encode
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
+from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.backends import BACKENDS, PENDING
 from motion_style_ros.runtime.contract import (
@@ -258,6 +260,10 @@ class Sampler:
         self._ready: list[np.ndarray] = []
         self._pose_decoder: StreamDecoder | None = None
         self.windows: list[np.ndarray] = []  # every window taken (for tests and figures), newest last
+        # chunk(): the model frames not yet passed (poses from model frame _first on) and the time
+        # (s) of the next output frame
+        self._first, self._clock = 0, 0.0
+        self._kept: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 22, 4)), np.zeros((0, 3)))
 
     def _noise(self, size: int) -> np.ndarray:
         """The next window's ``size`` standard normal numbers, the same on every machine."""
@@ -300,6 +306,28 @@ class Sampler:
             self._pose_decoder = StreamDecoder(1, self.fps)
         poses = [self._pose_decoder(f[None]) for f in self.frames(n)]
         return np.concatenate([q for q, _ in poses]), np.concatenate([p for _, p in poses])
+
+    def chunk(self, seconds: float, fps: float) -> Motion:
+        """The next ``seconds`` of the stream at ``fps`` as a canonical-skeleton clip, going on from
+        the last chunk's end with no seam (the model's frames interpolated at the output's times:
+        slerp, lerp): what a performer node publishes chunk by chunk at its own rate."""
+        if not (isinstance(fps, (int, float)) and fps > 0 and seconds > 0):
+            raise MotionStyleError(f"chunk needs a positive length and rate, got {seconds!r} s at {fps!r} fps")
+        n = max(round(seconds * fps), 1)
+        at = (self._clock + np.arange(n) / fps) * self.fps  # in model frames
+        self._clock += n / fps
+        base = np.floor(at).astype(int)
+        while self._first + len(self._kept[0]) < base[-1] + 2:
+            q, p = self.poses(self.hop)
+            self._kept = (np.concatenate([self._kept[0], q]), np.concatenate([self._kept[1], p]))
+        i = base - self._first
+        w = at - base
+        q, p = self._kept
+        rotations = rot.slerp(q[i], q[i + 1], w[:, None])
+        roots = p[i] + w[:, None] * (p[i + 1] - p[i])
+        drop = int(np.floor(self._clock * self.fps)) - self._first  # frames no later output needs
+        self._kept, self._first = (q[drop:], p[drop:]), self._first + drop
+        return Motion.from_rotations(canonical(), rotations, roots, fps)
 
     def motion(self, seconds: float) -> Motion:
         """The next ``seconds`` of the stream as a clip (its own trajectory, from the origin)."""
