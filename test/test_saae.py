@@ -195,6 +195,13 @@ def test_the_papers_measures_of_prior_windows_against_real_ones(models, data):
     assert figures["g2t"] > generative.measures(real[1::2][:40], real[::2], real[1::2])["g2t"]
 
 
+def test_the_papers_table_for_model_files(models, datasets):
+    rows = generative.table([models["model1"], models["model2"]], generated=24, test=30, root=datasets)
+    assert list(rows) == ["model1", "model2"]
+    assert all(r["test"] == 30 and r["generated"] == 24 and np.isfinite(r["parzen_log_likelihood"])
+               and r["g2t"] > 0 for r in rows.values())
+
+
 def test_training_reduces_reconstruction_resumes_identically_and_exports(data, walk, tmp_path):
     cfg = saae.tiny_config(variant="model2")
     trainer = saae.Trainer(cfg, data, tmp_path / "a", progress=False)
