@@ -13,7 +13,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import index_bandai, load_bandai
 from motion_style_ros.io.resources import rotation_stats
 from motion_style_ros.training import data as training_data
-from motion_style_ros.training import recurrent
+from motion_style_ros.training import recurrent, stgcn
 from motion_style_ros.training.loop import card_record
 from motion_style_ros.training.unlabelled import conditioned, load_unlabelled, sources
 
@@ -53,18 +53,19 @@ def test_a_spec_naming_nothing_is_one_line(datasets, spec):
     assert "\n" not in str(err.value)
 
 
-def test_a_style_erd_step_restyles_the_unlabelled_windows_and_the_card_lists_them(datasets, tmp_path):
+@pytest.mark.parametrize("trainer", [recurrent, stgcn], ids=["style_erd", "stgcn"])
+def test_a_step_restyles_the_unlabelled_windows_and_the_card_lists_them(datasets, tmp_path, trainer):
     labelled = training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
-    cfg = recurrent.tiny_config(unlabelled=("cmu:07",))
+    cfg = trainer.tiny_config(unlabelled=("cmu:07",))
     features, names = load_unlabelled(cfg.unlabelled, 30.0, progress=False)
     unknown = np.full(len(features), -1)
     data = training_data.Data(labelled.styles, labelled.contents, labelled.splits,
                               training_data.Clips(features, unknown, unknown), tuple(names))
     runs = {}
     for key, d in (("with", data), ("without", labelled)):
-        trainer = recurrent.Trainer(cfg, d, tmp_path / key, progress=False)
-        trainer.run(iterations=3, log_every=1, val_every=1000)
-        runs[key] = trainer
+        run = trainer.Trainer(cfg, d, tmp_path / key, progress=False)
+        run.run(iterations=3, log_every=1, val_every=1000)
+        runs[key] = run
     with_u, without = runs["with"], runs["without"]
     # the same labelled windows and seeds: only the restyled unlabelled windows differ
     assert any(not torch.equal(a, b) for a, b in zip(with_u.model.parameters(), without.model.parameters()))

@@ -305,9 +305,6 @@ def run_stgcn(args) -> int:
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
     out = _output(args)
     fields, recipe = _data_fields(args)
-    if fields["unlabelled"]:
-        raise MotionStyleError("--unlabelled: the ST-GCN trainer does not restyle unlabelled clips yet; "
-                               "'train recurrent' does")
     command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
         f" --iterations {args.iterations}" if args.iterations is not None else "") + (
         f" --init-from {args.init_from}" if args.init_from is not None else "") + (

@@ -61,6 +61,10 @@ class Config(DataConfig):
     mapping_hidden: int = 256
     # optimisation: Adam with StarGAN v2's betas (the paper's beta1 0.99 is too slow here)
     batch: int = 8
+    # windows of the unlabelled clips (DataConfig.unlabelled) per iteration, restyled into random
+    # styles: adversarial, style, cycle and identity terms with the code the style encoder reads
+    # in them (never shown to the critic as real, never in its classifier's loss)
+    unlabelled_batch: int = 4
     lr: float = 2e-4  # generator, style encoder, discriminator
     lr_mapping: float = 2e-5
     betas: tuple[float, float] = (0.0, 0.99)
@@ -187,9 +191,14 @@ class Trainer(ResumableTrainer):
         rng = np.random.default_rng([cfg.seed, 0, iteration])
         x, style, _ = windows(self.data.splits["train"], cfg.window, cfg.batch, rng)
         target = other_styles(style, n_styles, rng)
+        if self.data.unlabelled is not None:  # their style -1: unknown, read by the style encoder
+            u, _, _ = windows(self.data.unlabelled, cfg.window, cfg.unlabelled_batch, rng)
+            x, style = torch.cat([x, u]), torch.cat([style, torch.full((len(u),), -1)])
+            target = torch.cat([target, torch.from_numpy(rng.integers(0, n_styles, len(u)))])
         code_rng = np.random.default_rng([cfg.seed, 4, iteration])
         s_trg, s_trg2 = self.target_codes(iteration, target, code_rng, self.mapping_synced, self.encoder_synced)
         x, style, target = self.shard(x, style, target)
+        labelled = style >= 0
         contacts = x[..., self.losses.contact_cols]
 
         # discriminator: real windows of their own style vs transfers to the target style; the R1
@@ -199,11 +208,11 @@ class Trainer(ResumableTrainer):
             fake, _ = self.full(self.gen(x, s_trg), contacts)
         lazy = iteration % cfg.r1_every == 0
         x_real = x.clone().requires_grad_(lazy)
-        d_real = _at(self.dis_synced(x_real), style)
+        d_real = _at(self.dis_synced(x_real), style.clamp(min=0))[labelled]
         r1 = torch.zeros((), device=self.device)
         if lazy:
             (grad,) = torch.autograd.grad(d_real.sum(), x_real, create_graph=True)
-            r1 = 0.5 * (grad * self.in_std).pow(2).sum(dim=(1, 2)).mean()  # w.r.t. normalised input
+            r1 = 0.5 * (grad * self.in_std).pow(2).sum(dim=(1, 2))[labelled].mean()  # w.r.t. normalised input
         d_fake = _at(self.dis_synced(fake), target)
         critic = F.softplus(-d_real).mean() + F.softplus(d_fake).mean()
         self.opt_d.zero_grad()
@@ -224,8 +233,8 @@ class Trainer(ResumableTrainer):
             apart = (pose(fake_views["pos"]) - pose(self.losses.views(out2)["pos"])).norm(dim=-1)
             ds = apart.mean(dim=(1, 2)).clamp(max=cfg.ds_cap).mean() / self.losses.pos_scale
         codes, logits = self.encoder_synced(x)
-        s_src = pick(codes, style)
-        cls = F.cross_entropy(logits, style)
+        s_src = pick(codes, torch.where(labelled, style, logits.detach().argmax(-1)))
+        cls = F.cross_entropy(logits[labelled], style[labelled])
         real = self.losses.views(x[..., : self.gen.cfg.n_out])
         cyc = sum(self.losses.reconstruction(self.losses.views(self.gen_synced(fake, s_src)), real).values())
         idt = sum(self.losses.reconstruction(self.losses.views(self.gen_synced(x, s_src)), real).values())
