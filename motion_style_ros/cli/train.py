@@ -36,49 +36,21 @@ def add_parser(subparsers):
         "recurrent", help="the Style-ERD online stylizer (models/style_erd.onnx)",
         description="Train the Style-ERD generator with its FT-Att discriminator and content network "
                     "on Bandai dataset-2 train takes, then export the streaming step to ONNX with "
-                    "its model card. Checkpoints every few minutes to "
-                    "~/.cache/motion_style_ros/checkpoints/recurrent_<seed>/ (with losses.jsonl); "
-                    "--resume continues a stopped run, and the time and iteration budgets count "
-                    "over all resumed runs, so the same command finishes the job.",
+                    "its model card. " + _RESUMABLE.format("recurrent"),
     )
-    recurrent.add_argument("--minutes", type=float, default=110.0,
-                           help="training time budget in minutes, over all resumed runs (default: 110)")
-    recurrent.add_argument("--iterations", type=int, default=None,
-                           help="stop after this many iterations in total (default: no limit)")
-    recurrent.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    recurrent.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
-    _data_flags(recurrent)
+    _budget_flags(recurrent, minutes=110.0)
     recurrent.add_argument("--foot-weight", type=float, default=0.0, metavar="W",
                            help="weight of the foot-contact loss (default: 0)")
-    recurrent.add_argument("--resume", action="store_true",
-                           help="continue from the checkpoint of this seed if there is one "
-                                "(without it, an earlier run's checkpoint is discarded)")
-    recurrent.add_argument("--out", default=None,
-                           help="folder for style_erd.onnx and its card (default: the shipped models/)")
-    _run_flags(recurrent)
+    _output_flags(recurrent, "style_erd.onnx and its card")
     recurrent.set_defaults(func=run_recurrent)
     stgcn = targets.add_parser(
         "stgcn", help="the windowed ST-GCN stylizer (models/stgcn*.onnx)",
         description="Train the ST-GCN generator, mapping network, style encoder and discriminator "
                     "(Park et al. 2021) on Bandai dataset-2 train takes, then export the first "
-                    "three to ONNX with the model card. Checkpoints every few minutes to "
-                    "~/.cache/motion_style_ros/checkpoints/stgcn_<seed>/ (with losses.jsonl); "
-                    "--resume continues a stopped run, and the time and iteration budgets count "
-                    "over all resumed runs, so the same command finishes the job.",
+                    "three to ONNX with the model card. " + _RESUMABLE.format("stgcn"),
     )
-    stgcn.add_argument("--minutes", type=float, default=100.0,
-                       help="training time budget in minutes, over all resumed runs (default: 100)")
-    stgcn.add_argument("--iterations", type=int, default=None,
-                       help="stop after this many iterations in total (default: no limit)")
-    stgcn.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    stgcn.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
-    _data_flags(stgcn)
-    stgcn.add_argument("--resume", action="store_true",
-                       help="continue from the checkpoint of this seed if there is one "
-                            "(without it, an earlier run's checkpoint is discarded)")
-    stgcn.add_argument("--out", default=None,
-                       help="folder for stgcn*.onnx and the card (default: the shipped models/)")
-    _run_flags(stgcn)
+    _budget_flags(stgcn, minutes=100.0)
+    _output_flags(stgcn, "stgcn*.onnx and the card")
     stgcn.add_argument("--init-from", type=int, default=None, metavar="SEED",
                        help="a new run continues this seed's checkpoint (weights, optimisers, "
                             "iterations and time) under this run's settings")
@@ -98,58 +70,56 @@ def add_parser(subparsers):
                     "Model2's a style code of --style-dim dims from the encoder; both hide the style "
                     "from the content code through a reversed-gradient style discriminator. Exports "
                     "the decoder, encoder (and Model2's style encoder) to ONNX with the card, as "
-                    "saae_plain, saae_model1 or saae_model2_<d>d. Checkpoints every few minutes to "
-                    "~/.cache/motion_style_ros/checkpoints/<that name>_<seed>/ (with losses.jsonl); "
-                    "--resume continues a stopped run, and the time and iteration budgets count over "
-                    "all resumed runs, so the same command finishes the job.",
+                    "saae_plain, saae_model1 or saae_model2_<d>d. " + _RESUMABLE.format("<that name>"),
     )
     saae.add_argument("--variant", choices=("saae", "model1", "model2"), default="model2",
                       help="saae: the plain baseline (no style input); model1: decoder takes the "
                            "style label; model2: a style code (default: model2)")
     saae.add_argument("--style-dim", type=int, default=5, metavar="D",
                       help="Model2's style code size, 2 to 5 in the paper (default: 5)")
-    saae.add_argument("--minutes", type=float, default=110.0,
-                      help="training time budget in minutes, over all resumed runs (default: 110)")
-    saae.add_argument("--iterations", type=int, default=None,
-                      help="stop after this many iterations in total (default: no limit)")
-    saae.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    saae.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
-    _data_flags(saae)
-    saae.add_argument("--resume", action="store_true",
-                      help="continue from the checkpoint of this variant and seed if there is one "
-                           "(without it, an earlier run's checkpoint is discarded)")
-    saae.add_argument("--out", default=None,
-                      help="folder for saae_*.onnx and the card (default: the shipped models/)")
-    _run_flags(saae)
+    _budget_flags(saae, minutes=110.0)
+    _output_flags(saae, "saae_*.onnx and the card", checkpoint_of="this variant and seed")
     saae.set_defaults(func=run_saae)
     most = targets.add_parser(
         "most", help="the MoST reference-clip stylizer (models/most*.onnx)",
         description="Train MoST (Kim et al. 2024: Siamese transformer encoder, part-attentive style "
                     "modulator, AdaIN transformer generator, discriminator) on Bandai dataset-2 train "
                     "takes, then export the streamed step and the reference style encoder to ONNX "
-                    "with every style's mean features and the model card. Checkpoints every few "
-                    "minutes to ~/.cache/motion_style_ros/checkpoints/most_<seed>/ (with "
-                    "losses.jsonl); --resume continues a stopped run, and the time and iteration "
-                    "budgets count over all resumed runs, so the same command finishes the job.",
+                    "with every style's mean features and the model card. " + _RESUMABLE.format("most"),
     )
-    most.add_argument("--minutes", type=float, default=100.0,
-                      help="training time budget in minutes, over all resumed runs (default: 100)")
-    most.add_argument("--iterations", type=int, default=None,
-                      help="stop after this many iterations in total (default: no limit)")
-    most.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    most.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
-    _data_flags(most)
-    most.add_argument("--resume", action="store_true",
-                      help="continue from the checkpoint of this seed if there is one "
-                           "(without it, an earlier run's checkpoint is discarded)")
-    most.add_argument("--out", default=None,
-                      help="folder for most*.onnx, the style means and the card (default: the shipped models/)")
-    _run_flags(most)
+    _budget_flags(most, minutes=100.0)
+    _output_flags(most, "most*.onnx, the style means and the card")
     most.set_defaults(func=run_most)
 
 
 _DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
                   "unlabelled": ""}
+_RESUMABLE = ("Checkpoints every few minutes to ~/.cache/motion_style_ros/checkpoints/{}_<seed>/ (with "
+              "losses.jsonl); --resume continues a stopped run, and the time and iteration budgets count "
+              "over all resumed runs, so the same command finishes the job.")
+
+
+def _budget_flags(parser, minutes: float) -> None:
+    """What every resumable stylizer trainer takes first: its budgets (``minutes`` by default),
+    seed and threads, then the data flags."""
+    parser.add_argument("--minutes", type=float, default=minutes,
+                        help=f"training time budget in minutes, over all resumed runs (default: {minutes:g})")
+    parser.add_argument("--iterations", type=int, default=None,
+                        help="stop after this many iterations in total (default: no limit)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    parser.add_argument("--threads", type=int, default=2, help="torch CPU threads (default: 2)")
+    _data_flags(parser)
+
+
+def _output_flags(parser, files: str, checkpoint_of: str = "this seed") -> None:
+    """What every resumable stylizer trainer takes last: --resume (the checkpoint of
+    ``checkpoint_of``), --out (the folder of ``files``) and :func:`_run_flags`."""
+    parser.add_argument("--resume", action="store_true",
+                        help=f"continue from the checkpoint of {checkpoint_of} if there is one "
+                             "(without it, an earlier run's checkpoint is discarded)")
+    parser.add_argument("--out", default=None,
+                        help=f"folder for {files} (default: the shipped models/)")
+    _run_flags(parser)
 
 
 def _run_flags(parser) -> None:
@@ -272,115 +242,97 @@ def _report_judge(card: dict | None, out) -> None:
               f"-> {out / card['name']}.onnx")
 
 
-def run_recurrent(args) -> int:
+def _stylizer_run(args, module: str, unlabelled: str | None = None, check=None):
+    """What every stylizer trainer's command does before training: ``training.<module>``, the
+    budgets checked (then ``check()``, the trainer's own flags), the model folder, the data
+    fields and their flags (:func:`_data_fields`); ``unlabelled``: why the trainer refuses
+    --unlabelled, if it does."""
     from motion_style_ros.errors import MotionStyleError
 
-    recurrent = _training("recurrent")
+    trainer = _training(module)
     if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
         raise MotionStyleError("--minutes must be positive and --iterations at least 1")
+    if check is not None:
+        check()
     out = _output(args)
     fields, recipe = _data_fields(args)
+    if unlabelled and fields["unlabelled"]:
+        raise MotionStyleError(f"--unlabelled: {unlabelled}; 'train recurrent' does")
+    return trainer, out, fields, recipe
+
+
+def _run_settings(args, target: str, recipe: str, before: str = "", after: str = "") -> dict:
+    """The keyword arguments every trainer's ``train`` takes from the common flags, with the
+    command that resumes the run: ``motion-style train <target> <before>--minutes ... --seed ...
+    <recipe> [--iterations N]<after> --resume``."""
+    command = (f"motion-style train {target} {before}--minutes {args.minutes:g} --seed {args.seed}{recipe}"
+               + (f" --iterations {args.iterations}" if args.iterations is not None else "") + after)
+    return {"minutes": args.minutes, "iterations": args.iterations, "resume": args.resume,
+            "threads": args.threads, "command": command + " --resume", "device": args.device,
+            "licence": args.licence}
+
+
+def _report(card: dict | None, out, figures, name: str | None = None) -> int:
+    """A trained stylizer's line (rank 0; ``card`` is None elsewhere under torchrun): ``name``
+    (default: the card's), iterations and minutes, ``figures(val)`` of its last validation, the
+    ONNX export's difference from torch and its file."""
+    if card is None:  # not rank 0 of a torchrun
+        return 0
+    history = card["training"]["history"]
+    print(f"{name or card['name']}: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} "
+          f"min; {figures(history['val'][-1])}; ONNX vs torch {card['training']['onnx_torch_max_abs_diff']:.1e} "
+          f"-> {out / card['name']}.onnx")
+    return 0
+
+
+def _reconstruction(val: dict, what: str = "reconstruction") -> str:
+    return f"val {what} {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS)"
+
+
+def run_recurrent(args) -> int:
+    recurrent, out, fields, recipe = _stylizer_run(args, "recurrent")
     cfg = recurrent.Config(seed=args.seed, w_foot=args.foot_weight, **fields)
     if args.foot_weight:
         recipe += f" --foot-weight {args.foot_weight:g}"
-    command = f"motion-style train recurrent --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
-        f" --iterations {args.iterations}" if args.iterations is not None else "")
-    card = recurrent.train(cfg, out, args.minutes, args.iterations, args.resume, threads=args.threads,
-                           command=command + " --resume", device=args.device, licence=args.licence)
-    if card is None:  # not rank 0 of a torchrun
-        return 0
-    history = card["training"]["history"]
-    val = history["val"][-1]
-    print(f"style_erd: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
-          f"val reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS); "
-          f"ONNX vs torch {card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
-    return 0
+    card = recurrent.train(cfg, out, **_run_settings(args, "recurrent", recipe))
+    return _report(card, out, _reconstruction, "style_erd")
 
 
 def run_stgcn(args) -> int:
-    from motion_style_ros.errors import MotionStyleError
-
-    stgcn = _training("stgcn")
-    if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
-        raise MotionStyleError("--minutes must be positive and --iterations at least 1")
-    out = _output(args)
-    fields, recipe = _data_fields(args)
-    command = f"motion-style train stgcn --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
-        f" --iterations {args.iterations}" if args.iterations is not None else "") + (
-        f" --init-from {args.init_from}" if args.init_from is not None else "") + (
-        f" --ds-cap {args.ds_cap:g}" if args.ds_cap is not None else "") + (
-        f" --ds-weight {args.ds_weight:g}" if args.ds_weight is not None else "")
+    stgcn, out, fields, recipe = _stylizer_run(args, "stgcn")
+    after = "".join(f" --{flag} {value:g}" if isinstance(value, float) else f" --{flag} {value}"
+                    for flag, value in (("init-from", args.init_from), ("ds-cap", args.ds_cap),
+                                        ("ds-weight", args.ds_weight)) if value is not None)
     changes = {"ds_cap": args.ds_cap, **({"w_ds": args.ds_weight} if args.ds_weight is not None else {})}
-    card = stgcn.train(stgcn.Config(seed=args.seed, **fields, **changes), out, args.minutes,
-                       args.iterations, args.resume, threads=args.threads, command=command + " --resume",
-                       init_from=args.init_from, device=args.device, licence=args.licence)
-    if card is None:  # not rank 0 of a torchrun
-        return 0
-    history = card["training"]["history"]
-    val = history["val"][-1]
-    print(f"stgcn: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
-          f"val identity reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation "
-          f"RMS), style encoder accuracy {val['val_style_acc']:.2f}, transfers recognised "
-          f"{val['val_transfer_style_acc']:.2f}; ONNX vs torch "
-          f"{card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
-    return 0
+    card = stgcn.train(stgcn.Config(seed=args.seed, **fields, **changes), out,
+                       **_run_settings(args, "stgcn", recipe, after=after), init_from=args.init_from)
+    return _report(card, out, lambda val: (
+        f"{_reconstruction(val, 'identity reconstruction')}, style encoder accuracy {val['val_style_acc']:.2f}, "
+        f"transfers recognised {val['val_transfer_style_acc']:.2f}"), "stgcn")
 
 
 def run_saae(args) -> int:
     from motion_style_ros.errors import MotionStyleError
 
-    saae = _training("saae")
-    if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
-        raise MotionStyleError("--minutes must be positive and --iterations at least 1")
-    if not 1 <= args.style_dim <= 64:
-        raise MotionStyleError(f"--style-dim must be 1 to 64 (the paper's are 2 to 5), got {args.style_dim}")
-    out = _output(args)
-    fields, recipe = _data_fields(args)
-    if fields["unlabelled"]:
-        raise MotionStyleError("--unlabelled: the SAAE trainer does not use unlabelled clips; 'train recurrent' does")
-    command = (f"motion-style train saae --variant {args.variant} --style-dim {args.style_dim} "
-               f"--minutes {args.minutes:g} --seed {args.seed}{recipe}"
-               + (f" --iterations {args.iterations}" if args.iterations is not None else ""))
+    def style_dim() -> None:
+        if not 1 <= args.style_dim <= 64:
+            raise MotionStyleError(f"--style-dim must be 1 to 64 (the paper's are 2 to 5), got {args.style_dim}")
+
+    saae, out, fields, recipe = _stylizer_run(args, "saae", "the SAAE trainer does not use unlabelled clips",
+                                              style_dim)
     cfg = saae.Config(seed=args.seed, variant=args.variant, style_dim=args.style_dim, **fields)
-    card = saae.train(cfg, out, args.minutes, args.iterations, args.resume, threads=args.threads,
-                      command=command + " --resume", device=args.device, licence=args.licence)
-    if card is None:  # not rank 0 of a torchrun
-        return 0
-    history = card["training"]["history"]
-    val = history["val"][-1]
-    extra = "".join(f", {label} {val[key]:.2f}" for key, label in (
-        ("val_content_style_acc", "style read from the content code"),
-        ("val_style_code_acc", "from the style code"),
-        ("val_transfer_style_acc", "transfers recognised")) if key in val)
-    print(f"{card['name']}: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
-          f"val reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS){extra}; "
-          f"ONNX vs torch {card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
-    return 0
+    card = saae.train(cfg, out, **_run_settings(args, "saae", recipe,
+                                                before=f"--variant {args.variant} --style-dim {args.style_dim} "))
+    return _report(card, out, lambda val: _reconstruction(val) + "".join(
+        f", {label} {val[key]:.2f}" for key, label in (
+            ("val_content_style_acc", "style read from the content code"),
+            ("val_style_code_acc", "from the style code"),
+            ("val_transfer_style_acc", "transfers recognised")) if key in val))
 
 
 def run_most(args) -> int:
-    from motion_style_ros.errors import MotionStyleError
-
-    most = _training("most")
-    if args.minutes <= 0 or (args.iterations is not None and args.iterations < 1):
-        raise MotionStyleError("--minutes must be positive and --iterations at least 1")
-    out = _output(args)
-    fields, recipe = _data_fields(args)
-    if fields["unlabelled"]:
-        raise MotionStyleError("--unlabelled: the MoST trainer does not restyle unlabelled clips; "
-                               "'train recurrent' does")
-    command = f"motion-style train most --minutes {args.minutes:g} --seed {args.seed}{recipe}" + (
-        f" --iterations {args.iterations}" if args.iterations is not None else "")
-    card = most.train(most.Config(seed=args.seed, **fields), out, args.minutes, args.iterations, args.resume,
-                      threads=args.threads, command=command + " --resume", device=args.device,
-                      licence=args.licence)
-    if card is None:  # not rank 0 of a torchrun
-        return 0
-    history = card["training"]["history"]
-    val = history["val"][-1]
-    print(f"most: {history['iterations']} iterations in {history['train_seconds'] / 60:.0f} min; "
-          f"val reconstruction {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS), "
-          f"disentanglement {val['val_disentangle']:.3f}, transfers nearest their style "
-          f"{val['val_transfer_style_acc']:.2f}; ONNX vs torch "
-          f"{card['training']['onnx_torch_max_abs_diff']:.1e} -> {out / card['name']}.onnx")
-    return 0
+    most, out, fields, recipe = _stylizer_run(args, "most", "the MoST trainer does not restyle unlabelled clips")
+    card = most.train(most.Config(seed=args.seed, **fields), out, **_run_settings(args, "most", recipe))
+    return _report(card, out, lambda val: (
+        f"{_reconstruction(val)}, disentanglement {val['val_disentangle']:.3f}, transfers nearest their "
+        f"style {val['val_transfer_style_acc']:.2f}"), "most")
