@@ -105,7 +105,7 @@ def test_the_session_streams_a_real_clip_with_the_reference_encoded_once(exporte
     assert session.set_reference(punch, style="elderly") == "elderly"
     assert calls["style"] == 1
     k = session.styles.index("elderly")
-    session.steps._progress[:] = 1.0  # the blend done
+    session.windows._code_progress[:] = 1.0  # the blend done
     assert np.abs(session.features()[k] - means[k]).max() > 1e-6  # the clip's features, not the mean
     assert np.array_equal(session.features()[k - 1], means[k - 1])  # the other styles keep theirs
     clip = walk[:90]

@@ -1,7 +1,7 @@
 """The sequence adversarial autoencoder (ESANN 2018 seed) at run time, without torch: windowed
 restyling through the shared stream session, and a sampler of endless new motion from the prior.
 
-- :class:`SaaeStep` is :class:`~motion_style_ros.runtime.windowed.WindowedStep`'s windows and
+- :class:`SaaeStep` is :class:`~motion_style_ros.runtime.windowed.OverlapWindows`' windows and
   overlap-add around another model: each window is encoded to its content code and decoded with the
   target's style input. Each performer has a style input per style (the card's ``style_inputs``:
   one-hot for Model1, the style's mean style code for Model2), mixed by the controls' style weights
@@ -9,8 +9,10 @@ restyling through the shared stream session, and a sampler of endless new motion
   the window's own style code (its style encoder) to the target's, and Model1's output from the
   input's frames to the restyled ones: alpha 0 gives the input back (Model1) or its reconstruction
   (Model2). The plain SAAE has no style input, so it cannot restyle: a session refuses it.
-- :class:`SaaeSession` is the stream session with Model2's reference clips: a clip's style code
-  (the mean over its windows) replaces a style's input (:meth:`SaaeSession.set_reference`).
+- :class:`SaaeSession` is the windowed stream session
+  (:class:`~motion_style_ros.runtime.windowed.BanklessSession`) with Model2's reference clips: a
+  clip's style code (the mean over its windows) replaces a style's input
+  (:meth:`SaaeSession.set_reference`).
 - :class:`Sampler` decodes content codes drawn from the prior N(0, I) with a chosen style's input
   into an endless ``[root | rot6d]`` stream (and poses): windows half overlapping, each next one the
   best-fitting of a few candidates to where the last one goes, blended by overlap-add
@@ -28,7 +30,6 @@ from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.features import StreamDecoder, decode, encode
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
-from motion_style_ros.core.resample import resample
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.backends import BACKENDS, PENDING
@@ -38,10 +39,8 @@ from motion_style_ros.runtime.contract import (
     SAAE_STYLE_ENCODER,
     check_card,
 )
-from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
-from motion_style_ros.runtime.stream import StreamSession
-from motion_style_ros.runtime.windowed import WindowedStep, latent
+from motion_style_ros.runtime.windowed import BanklessSession, OverlapWindows, latent
 
 # the paper's best (its Tables 1 and 2), Model2 with a 5-dim style code: 'motion-style train saae'
 DEFAULT_MODEL = {**PENDING, **BACKENDS}["saae"].default_model
@@ -58,31 +57,12 @@ def _style_table(card: dict, key: str) -> np.ndarray:
         len(card["styles"]), int(card["style_width"]))
 
 
-class _Restyler:
-    """Encoder and decoder as the one ``run(features, code)`` that :class:`WindowedStep` calls per
-    window; Model1's alpha (set by the step just before) blends the output from the input's frames."""
-
-    def __init__(self, step: SaaeStep) -> None:
-        self.step = step
-        self.alpha: np.ndarray | None = None
-
-    def run(self, features: np.ndarray, code: np.ndarray) -> dict[str, np.ndarray]:
-        s = self.step
-        content = s.encoder.run(features=features)["content"]
-        out = s.decoder.run(content=content, style=code,
-                            position=_positions(features.shape[1], s.trained_window, len(features)))["output"]
-        if s.variant == "model1" and self.alpha is not None and (self.alpha < 1.0).any():
-            source = features[..., : out.shape[-1]]
-            out = source + self.alpha[:, :, None].astype(np.float32) * (out - source)
-        return {"output": out}
-
-
-class SaaeStep(WindowedStep):
+class SaaeStep(OverlapWindows):
     """The SAAE at ``path`` (card ``card``) as a model step: windows over the history, overlap-add
-    (as :class:`WindowedStep`), every performer's style inputs; output ``lookahead`` model frames
-    behind the input."""
+    (as :class:`~motion_style_ros.runtime.windowed.OverlapWindows` has them), every performer's
+    style inputs; output ``lookahead`` model frames behind the input."""
 
-    aligned = True
+    WINDOW_LEAST = 2
 
     def __init__(self, path: Path, card: dict, threads: int, window: int | None, hop: int,
                  lookahead: int) -> None:
@@ -92,15 +72,7 @@ class SaaeStep(WindowedStep):
             raise MotionStyleError(f"{path}: a plain SAAE has no style input, so it cannot restyle (it is the "
                                    "generative baseline: runtime.saae.Sampler); use a model1 or model2 model")
         self.trained_window = int(card["window"])
-        self.window = self.trained_window if window is None else window
-        if not (isinstance(self.window, (int, np.integer)) and self.window >= 2):
-            raise MotionStyleError(f"window must be a whole number of frames, at least 2; got {window!r}")
-        if not (isinstance(hop, (int, np.integer)) and 1 <= hop <= self.window):
-            raise MotionStyleError(f"hop must be 1 to {self.window} frames (the window), got {hop!r}")
-        if not isinstance(lookahead, (int, np.integer)):
-            raise MotionStyleError(f"lookahead must be a whole number of frames, got {lookahead!r}")
-        self.hop, self.lookahead = int(hop), int(lookahead)
-        self.delay_frames = self.lookahead
+        self._sizes(window, self.trained_window, hop, lookahead)
         self.decoder = OnnxModel(path, threads)
         SAAE_DECODER.check(self.decoder.input_names, path, "SAAE decoder")
         files = {k: model_path(str(path.with_name(name))) for k, name in card["files"].items()}
@@ -110,83 +82,52 @@ class SaaeStep(WindowedStep):
         if self.variant == "model2":
             self.style_encoder = OnnxModel(files["style_encoder"], threads)
             SAAE_STYLE_ENCODER.check(self.style_encoder.input_names, files["style_encoder"], "SAAE style encoder")
-        self.model = _Restyler(self)
         self.styles = list(card["styles"])
-        self.known = len(self.styles)
         self._inputs = _style_table(card, "style_inputs")
-        layout = card["feature_layout"]
-        self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
-        self._fps = float(card["fps"])
+        self._layout(card)
 
     def start(self, performers: int, blend_seconds: float) -> None:
-        self.performers, self.blend_seconds = performers, blend_seconds
-        # style inputs per performer and style: blended from _codes_from to _codes_to (WindowedStep)
-        self._codes_to = np.repeat(self._inputs[None], performers, axis=0)
-        self._codes_from = self._codes_to.copy()
-        self._code_progress = np.ones(performers)
+        self._start_codes(performers, blend_seconds, self._inputs)
 
     def _code(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         """``(P, style_width)`` float32 style inputs for the window in ``_history``."""
         target = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes())
-        self.model.alpha = alpha
         if self.variant == "model1" or (alpha >= 1.0).all():
             return target.astype(np.float32)
         own = self.style_encoder.run(features=self._history)["style_code"]
         return (own + alpha * (target - own)).astype(np.float32)
 
+    def _run(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        """The window encoded to its content code and decoded with the style input; Model1's
+        alpha blends the output from the input's frames."""
+        code, features = self._code(style, alpha), self._history
+        content = self.encoder.run(features=features)["content"]
+        out = self.decoder.run(content=content, style=code,
+                               position=_positions(features.shape[1], self.trained_window, len(features)))["output"]
+        if self.variant == "model1" and (alpha < 1.0).any():
+            source = features[..., : out.shape[-1]]
+            out = source + alpha[:, :, None].astype(np.float32) * (out - source)
+        return out
 
-class SaaeSession(StreamSession):
+
+class SaaeSession(BanklessSession):
     """The SAAE restyler over a stream of ``performers`` performers (see the module docstring and
-    :class:`~motion_style_ros.runtime.stream.StreamSession`); ``window``, ``hop``, ``lookahead`` as
-    for the ST-GCN session. ``bank`` is taken for the node's sake and must be None (no style bank)."""
+    :class:`~motion_style_ros.runtime.windowed.BanklessSession`). Model2 takes reference clips: a
+    clip's style code becomes the input of ``style`` (by default the style its classifier
+    recognises)."""
 
-    def __init__(
-        self,
-        model: str | Path = DEFAULT_MODEL,
-        performers: int = 1,
-        input_fps: float | None = None,
-        blend_seconds: float = DEFAULTS["blend_seconds"],
-        threads: int = 1,
-        gap_seconds: float = DEFAULTS["gap_seconds"],
-        follow_seconds: float | None = DEFAULTS["follow_seconds"],
-        window: int | None = None,
-        hop: int = DEFAULTS["hop"],
-        lookahead: int = DEFAULTS["lookahead"],
-        foot_lock: bool = DEFAULTS["foot_lock"],
-        ground: bool = DEFAULTS["ground"],
-        pipelined: bool = DEFAULTS["pipelined"],
-        conform: bool = DEFAULTS["conform"],
-        bank: str | Path | None = None,
-        phase_seconds: float = 0.0,
-    ) -> None:
-        if bank is not None:
-            raise MotionStyleError("the SAAE backend has no style bank (its styles are its training labels)")
-        path = model_path(str(model))
-        card = read_card(path)
-        self.windows = SaaeStep(path, card, threads, window, hop, lookahead)
-        w = self.windows
-        self.window, self.hop, self.lookahead, self.variant = w.window, w.hop, w.lookahead, w.variant
-        super().__init__(card, w, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                         foot_lock, ground, pipelined, conform, phase_seconds)
+    STEP = SaaeStep
+    DEFAULT_MODEL = DEFAULT_MODEL
+    NO_BANK = "the SAAE backend has no style bank (its styles are its training labels)"
+
+    @property
+    def variant(self) -> str:
+        """saae, model1 or model2 (the card's)."""
+        return self.windows.variant
 
     def style_inputs(self, performer: int = 0) -> np.ndarray:
         """``(S, style_width)``: the performer's style input for each style as it is now."""
         return self.windows.current_codes()[self.controls.which(performer)]
-
-    def set_reference(self, motion: Motion, style: str | None = None, performer: int | None = None) -> str:
-        """Model2: move like this recording. The clip's style code becomes the input of ``style``
-        (by default the style its classifier recognises), which becomes the target; returns it."""
-        return self.use_reference(*self.reference_codes(motion), style, performer)
-
-    def use_reference(self, code: np.ndarray, logits: np.ndarray, style: str | None = None,
-                      performer: int | None = None) -> str:
-        """:meth:`set_reference` with the clip's :meth:`reference_codes` already made."""
-        k = int(np.argmax(logits)) if style is None else self.controls.style_index(style)
-        which = self.controls.which(performer)
-        self.catch_up()
-        self.windows.blend_to(which, code, k)
-        self.set_style(self.styles[k], performer)
-        return self.styles[k]
 
     def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         """A clip's style code ``(style_dim,)`` and style logits ``(S,)``, each the mean over its
@@ -194,20 +135,8 @@ class SaaeSession(StreamSession):
         if self.windows.style_encoder is None:
             raise MotionStyleError("a reference clip needs a Model2 SAAE (a style encoder); this is "
                                    f"{self.variant}, restyled by label only")
-        if not isinstance(motion, Motion):
-            raise MotionStyleError(f"a reference must be a Motion, got {type(motion).__name__}")
-        if motion.skeleton.names != self.skeleton.names:
-            raise MotionStyleError("reference clip not on the canonical skeleton (retarget it first: "
-                                   "motion-style retarget)")
-        if not (np.isfinite(motion.rotations).all() and np.isfinite(motion.positions).all()):
-            raise MotionStyleError("reference clip has NaN or infinite values")
-        if motion.fps != self.fps:
-            motion = resample(motion, self.fps)
-        motion = self.conformed(motion)
         w = self.windows.trained_window
-        if motion.n_frames < w:
-            raise MotionStyleError(f"reference clip too short: {motion.n_frames} frames at {self.fps:g} fps; "
-                                   f"it needs at least {w} ({w / self.fps:.1f} s)")
+        motion = self.reference_clip(motion, w)
         features = encode(motion).astype(np.float32)
         starts = range(0, motion.n_frames - w + 1, max(w // 2, 1))
         out = self.windows.style_encoder.run(features=np.stack([features[s : s + w] for s in starts]))

@@ -89,53 +89,51 @@ def _softmax(x: np.ndarray) -> np.ndarray:
     return e / e.sum(axis=-1, keepdims=True)
 
 
-class WindowedStep:
-    """The windowed generator at ``path`` (card ``card``, its companions beside it) as a model
-    step: windows over the history, overlap-add, every performer's style codes (seeds, references,
-    the style bank ``bank``); its output frame is ``lookahead`` model frames behind its input."""
+class OverlapWindows:
+    """Windows over each performer's history blended by overlap-add, and every performer's style
+    inputs (one per style) blended over ``blend_seconds``: the model step of every windowed backend.
+    A subclass sets its sizes (:meth:`_sizes`) and layout (:meth:`_layout`) in ``__init__``, starts
+    the style inputs in ``start`` (:meth:`_start_codes`) and runs its model on the window in
+    ``_history`` in :meth:`_run`; its output frame is ``lookahead`` model frames behind its input."""
 
     aligned = True
+    WINDOW_LEAST = 4  # the fewest frames a window may have
+    WINDOW_MULTIPLE = 1  # and what its length must be a multiple of
 
-    def __init__(self, path: Path, card: dict, threads: int, window: int | None, hop: int,
-                 lookahead: int, latent_seed: int, seed_spread: float, bank: str | Path | None) -> None:
-        check_card(card, path, "windowed")
-        self.card = card
-        self.window = int(card["window"]) if window is None else window
-        if not (isinstance(self.window, (int, np.integer)) and self.window >= 4 and self.window % 4 == 0):
-            raise MotionStyleError(f"window must be a multiple of 4 frames, at least 4; got {window!r}")
+    def _sizes(self, window: int | None, default: int, hop: int, lookahead: int) -> None:
+        """``window`` (``default`` when None), ``hop`` and ``lookahead``, or a one-line reason why not
+        (a lookahead of the window or more: :class:`~motion_style_ros.core.overlap_add.OverlapAdd`)."""
+        self.window = default if window is None else window
+        least, multiple = self.WINDOW_LEAST, self.WINDOW_MULTIPLE
+        if not (isinstance(self.window, (int, np.integer)) and self.window >= least
+                and self.window % multiple == 0):
+            what = f"a multiple of {multiple} frames" if multiple > 1 else "a whole number of frames"
+            raise MotionStyleError(f"window must be {what}, at least {least}; got {window!r}")
         if not (isinstance(hop, (int, np.integer)) and 1 <= hop <= self.window):
             raise MotionStyleError(f"hop must be 1 to {self.window} frames (the window), got {hop!r}")
         if not isinstance(lookahead, (int, np.integer)):
             raise MotionStyleError(f"lookahead must be a whole number of frames, got {lookahead!r}")
         self.hop, self.lookahead = int(hop), int(lookahead)
         self.delay_frames = self.lookahead
-        self.model = OnnxModel(path, threads)
-        WINDOWED.check(self.model.input_names, path, "windowed generator")
-        companions = {k: model_path(str(path.with_name(name))) for k, name in card["files"].items()}
-        self.mapping = OnnxModel(companions["mapping"], threads)
-        self.style_encoder = OnnxModel(companions["style_encoder"], threads)
-        self.model_digest = style_bank.digest([path, companions["style_encoder"]])
-        known = list(card["styles"])
-        beside = style_bank.path_beside(path)
-        self.bank_path = Path(bank) if bank is not None else beside if beside.exists() else None
-        self.bank = ({} if self.bank_path is None else
-                     style_bank.read(self.bank_path, self.model_digest, int(card["style_dim"]), known))
-        self.styles = [*known, *self.bank]
-        self.known = len(known)
-        self._bank_codes = np.array([e.code for e in self.bank.values()]).reshape(len(self.bank), int(card["style_dim"]))
+
+    def _layout(self, card: dict) -> None:
+        """The input and output widths and the rate, from the card."""
         layout = card["feature_layout"]
         self._n_in, self._n_out = int(layout["contact"][1]), int(layout["rot6d"][1])
         self._fps = float(card["fps"])
-        self._seed, self._spread = latent_seed, seed_spread  # checked in start()
 
-    def start(self, performers: int, blend_seconds: float) -> None:
+    def _start_codes(self, performers: int, blend_seconds: float, codes: np.ndarray) -> None:
+        """Every performer starts with ``codes`` (every style's input ``(S, ...)``)."""
         self.performers, self.blend_seconds = performers, blend_seconds
-        self.seed_spread = _spread(self._spread)
-        self._mean_codes = self._mapped(*MEAN_SEEDS).mean(axis=0)
         # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
-        self._codes_to = np.repeat(self.seed_codes(self._seed)[None], performers, axis=0)
+        self._codes_to = np.repeat(codes[None], performers, axis=0)
         self._codes_from = self._codes_to.copy()
         self._code_progress = np.ones(performers)
+
+    def _run(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        """The model's output ``(P, window, n_out)`` for the window in ``_history``, at the style
+        weights ``style`` ``(P, S)`` and ``alpha`` ``(P, 1)``."""
+        raise NotImplementedError
 
     def restart(self) -> None:
         self._n = 0  # model frames since the stream started
@@ -170,7 +168,7 @@ class WindowedStep:
         due = np.maximum(n - lookahead, self._start)  # the frame each performer emits now
         slot = due - (n - lookahead)
         if n - self._last_window >= self.hop or not self._ola.covered(slot).all():
-            self._ola.add(self.model.run(features=self._history, code=self._code(style, alpha))["output"])
+            self._ola.add(self._run(style, alpha))
             self._last_window = n
         blocks = self._ola.frame(slot)
         # A performer's first frame is shown until its lookahead has come in, refined as windows
@@ -181,6 +179,59 @@ class WindowedStep:
         return Stylized(blocks, self._history[every, due - n - 1], self._ankles[every, slot],
                         self._lifts[every, slot])
 
+    def current_codes(self) -> np.ndarray:
+        """``(P, S, ...)``: every performer's codes as they are now (mid-blend included)."""
+        w = smoothstep(self._code_progress).reshape(-1, *(1,) * (self._codes_to.ndim - 1))
+        return self._codes_from + w * (self._codes_to - self._codes_from)
+
+    def blend_to(self, which: slice | int, codes: np.ndarray, style: int | None = None) -> None:
+        """Blend the performers ``which`` from their current codes to ``codes`` (every style's
+        ``(S, ...)``, or with ``style`` that style's) over ``blend_seconds``."""
+        self._codes_from[which] = self.current_codes()[which]
+        self._code_progress[which] = 0.0 if self.blend_seconds else 1.0
+        if style is None:
+            self._codes_to[which] = codes
+        else:
+            self._codes_to[which, style] = codes
+
+
+class WindowedStep(OverlapWindows):
+    """The windowed generator at ``path`` (card ``card``, its companions beside it) as a model
+    step: windows over the history, overlap-add, every performer's style codes (seeds, references,
+    the style bank ``bank``); its output frame is ``lookahead`` model frames behind its input."""
+
+    WINDOW_MULTIPLE = 4
+
+    def __init__(self, path: Path, card: dict, threads: int, window: int | None, hop: int,
+                 lookahead: int, latent_seed: int, seed_spread: float, bank: str | Path | None) -> None:
+        check_card(card, path, "windowed")
+        self.card = card
+        self._sizes(window, int(card["window"]), hop, lookahead)
+        self.model = OnnxModel(path, threads)
+        WINDOWED.check(self.model.input_names, path, "windowed generator")
+        companions = {k: model_path(str(path.with_name(name))) for k, name in card["files"].items()}
+        self.mapping = OnnxModel(companions["mapping"], threads)
+        self.style_encoder = OnnxModel(companions["style_encoder"], threads)
+        self.model_digest = style_bank.digest([path, companions["style_encoder"]])
+        known = list(card["styles"])
+        beside = style_bank.path_beside(path)
+        self.bank_path = Path(bank) if bank is not None else beside if beside.exists() else None
+        self.bank = ({} if self.bank_path is None else
+                     style_bank.read(self.bank_path, self.model_digest, int(card["style_dim"]), known))
+        self.styles = [*known, *self.bank]
+        self.known = len(known)
+        self._bank_codes = np.array([e.code for e in self.bank.values()]).reshape(len(self.bank), int(card["style_dim"]))
+        self._layout(card)
+        self._seed, self._spread = latent_seed, seed_spread  # checked in start()
+
+    def start(self, performers: int, blend_seconds: float) -> None:
+        self.seed_spread = _spread(self._spread)
+        self._mean_codes = self._mapped(*MEAN_SEEDS).mean(axis=0)
+        self._start_codes(performers, blend_seconds, self.seed_codes(self._seed))
+
+    def _run(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        return self.model.run(features=self._history, code=self._code(style, alpha))["output"]
+
     # --- codes --------------------------------------------------------------------------------
 
     def seed_codes(self, seed: int) -> np.ndarray:
@@ -188,21 +239,6 @@ class WindowedStep:
         they are)."""
         seeded = self._mean_codes + self.seed_spread * (self._mapped(seed)[0] - self._mean_codes)
         return np.concatenate([seeded, self._bank_codes])
-
-    def current_codes(self) -> np.ndarray:
-        """``(P, S, D)``: every performer's codes as they are now (mid-blend included)."""
-        w = smoothstep(self._code_progress)[:, None, None]
-        return self._codes_from + w * (self._codes_to - self._codes_from)
-
-    def blend_to(self, which: slice | int, codes: np.ndarray, style: int | None = None) -> None:
-        """Blend the performers ``which`` from their current codes to ``codes`` (every style's
-        ``(S, D)``, or with ``style`` that style's ``(D,)``) over ``blend_seconds``."""
-        self._codes_from[which] = self.current_codes()[which]
-        self._code_progress[which] = 0.0 if self.blend_seconds else 1.0
-        if style is None:
-            self._codes_to[which] = codes
-        else:
-            self._codes_to[which, style] = codes
 
     def _mapped(self, *seeds: int) -> np.ndarray:
         """``(K, S, D)``: every style's code for each seed from the mapping network, as trained
@@ -223,7 +259,110 @@ class WindowedStep:
         return (own + alpha * (target - own)).astype(np.float32)
 
 
-class WindowedSession(StreamSession):
+class WindowsSession(StreamSession):
+    """A :class:`~motion_style_ros.runtime.stream.StreamSession` around an :class:`OverlapWindows`
+    step ``windows`` (its ``window``, ``hop`` and ``lookahead`` mirrored), with reference clips: a
+    subclass gives :meth:`reference_codes` (a clip's style input for each style, and how much it
+    looks like each style) and this class sets them as a target."""
+
+    def __init__(self, windows: OverlapWindows, performers: int, input_fps: float | None,
+                 blend_seconds: float, gap_seconds: float, follow_seconds: float | None, foot_lock: bool,
+                 ground: bool, pipelined: bool, conform: bool, phase_seconds: float) -> None:
+        self.windows = windows
+        self.window, self.hop, self.lookahead = windows.window, windows.hop, windows.lookahead
+        super().__init__(windows.card, windows, performers, input_fps, blend_seconds, gap_seconds,
+                         follow_seconds, foot_lock, ground, pipelined, conform, phase_seconds)
+
+    def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def set_reference(self, motion: Motion, style: str | None = None, performer: int | None = None
+                      ) -> str:
+        """Move like this recording: the clip's :meth:`reference_codes` become the input of
+        ``style`` (by default the style the clip looks most like), which becomes the target;
+        returns it."""
+        return self.use_reference(*self.reference_codes(motion), style, performer)
+
+    def use_reference(self, codes: np.ndarray, logits: np.ndarray, style: str | None = None,
+                      performer: int | None = None) -> str:
+        """:meth:`set_reference` with the clip's :meth:`reference_codes` already made (a node makes
+        them off the thread that streams)."""
+        k = int(np.argmax(logits)) if style is None else self.controls.style_index(style)
+        return self._target(codes, k, performer)
+
+    def _target(self, code: np.ndarray, k: int, performer: int | None) -> str:
+        """Blend style ``k``'s input of the performer (or all) to ``code`` and make it the target."""
+        which = self.controls.which(performer)
+        self.catch_up()  # the model frames a pipelined step left run with the codes they had
+        self.windows.blend_to(which, code, k)
+        self.set_style(self.styles[k], performer)
+        return self.styles[k]
+
+    def reference_clip(self, motion: Motion, frames: int) -> Motion:
+        """A reference clip as the style encoder reads it (at the model's rate, conformed to the
+        training data's frames), or a one-line reason why it cannot serve: not a canonical-skeleton
+        :class:`Motion`, not finite, or shorter than ``frames`` model frames."""
+        if not isinstance(motion, Motion):
+            raise MotionStyleError(f"a reference must be a Motion, got {type(motion).__name__}")
+        if motion.skeleton.names != self.skeleton.names:
+            raise MotionStyleError(
+                f"reference clip on a skeleton of {motion.skeleton.n_joints} joints "
+                f"({', '.join(motion.skeleton.names[:3])}, ...); it must be on the canonical skeleton "
+                "(retarget it first: motion-style retarget)"
+            )
+        if not (np.isfinite(motion.rotations).all() and np.isfinite(motion.positions).all()):
+            raise MotionStyleError("reference clip has NaN or infinite values")
+        if motion.fps != self.fps:
+            motion = resample(motion, self.fps)
+        motion = self.conformed(motion)  # the encoder reads rotations: in the training data's frames
+        if motion.n_frames < frames:
+            raise MotionStyleError(
+                f"reference clip too short: {motion.n_frames} frames at {self.fps:g} fps; it needs at "
+                f"least {frames} ({frames / self.fps:.1f} s)"
+            )
+        return motion
+
+
+class BanklessSession(WindowsSession):
+    """A windowed backend's session whose styles are its card's (no seeds, no style bank): the
+    step ``STEP(path, card, threads, window, hop, lookahead)`` of the model ``model`` (default:
+    ``DEFAULT_MODEL``); ``window``, ``hop``, ``lookahead`` as for :class:`WindowedSession`.
+    ``bank`` is taken for the node's sake (it gives one to every windowed backend) and must be
+    None (``NO_BANK`` says why). Until :meth:`set_style`, every performer gets the card's
+    ``neutral_style`` at alpha 1; ``phase_seconds``: as for the stream session."""
+
+    STEP: type[OverlapWindows]
+    DEFAULT_MODEL: str
+    NO_BANK: str
+
+    def __init__(
+        self,
+        model: str | Path | None = None,
+        performers: int = 1,
+        input_fps: float | None = None,
+        blend_seconds: float = DEFAULTS["blend_seconds"],
+        threads: int = 1,
+        gap_seconds: float = DEFAULTS["gap_seconds"],
+        follow_seconds: float | None = DEFAULTS["follow_seconds"],
+        window: int | None = None,
+        hop: int = DEFAULTS["hop"],
+        lookahead: int = DEFAULTS["lookahead"],
+        foot_lock: bool = DEFAULTS["foot_lock"],
+        ground: bool = DEFAULTS["ground"],
+        pipelined: bool = DEFAULTS["pipelined"],
+        conform: bool = DEFAULTS["conform"],
+        bank: str | Path | None = None,
+        phase_seconds: float = 0.0,
+    ) -> None:
+        if bank is not None:
+            raise MotionStyleError(self.NO_BANK)
+        path = model_path(str(self.DEFAULT_MODEL if model is None else model))
+        windows = self.STEP(path, read_card(path), threads, window, hop, lookahead)
+        super().__init__(windows, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
+                         foot_lock, ground, pipelined, conform, phase_seconds)
+
+
+class WindowedSession(WindowsSession):
     """The windowed stylizer over a stream of ``performers`` performers (see the module docstring
     and :class:`~motion_style_ros.runtime.stream.StreamSession`).
 
@@ -257,14 +396,10 @@ class WindowedSession(StreamSession):
         phase_seconds: float = 0.0,
     ) -> None:
         path = model_path(str(model))
-        card = read_card(path)
-        self.windows = WindowedStep(path, card, threads, window, hop, lookahead, latent_seed,
-                                    seed_spread, bank)
-        w = self.windows
-        self.window, self.hop, self.lookahead = w.window, w.hop, w.lookahead
+        w = WindowedStep(path, read_card(path), threads, window, hop, lookahead, latent_seed, seed_spread, bank)
         self.model, self.mapping, self.style_encoder = w.model, w.mapping, w.style_encoder
         self.model_digest, self.bank, self.bank_path = w.model_digest, w.bank, w.bank_path
-        super().__init__(card, w, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
+        super().__init__(w, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
                          foot_lock, ground, pipelined, conform, phase_seconds)
 
     @property
@@ -310,11 +445,7 @@ class WindowedSession(StreamSession):
         else:  # an enrolled style: its own head, or for a mixed entry the clip's closest style
             enrolled = self.bank[self.styles[k]].head
             head = int(np.argmax(logits)) if enrolled == style_bank.MIX else self.styles.index(enrolled)
-        which = self.controls.which(performer)
-        self.catch_up()
-        self.windows.blend_to(which, codes[head], k)
-        self.set_style(self.styles[k], performer)
-        return self.styles[k]
+        return self._target(codes[head], k, performer)
 
     def enrol(self, clips: list[Motion], names: list[str], head: str | None = None) -> style_bank.Entry:
         """A bank entry from a few clips of one style (see :mod:`~motion_style_ros.runtime.style_bank`)."""
@@ -326,24 +457,7 @@ class WindowedSession(StreamSession):
     def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         """A clip's code under every style's head ``(S, D)`` and the style logits ``(S,)``, or a
         one-line reason why the clip cannot serve as a reference."""
-        if not isinstance(motion, Motion):
-            raise MotionStyleError(f"a reference must be a Motion, got {type(motion).__name__}")
-        if motion.skeleton.names != self.skeleton.names:
-            raise MotionStyleError(
-                f"reference clip on a skeleton of {motion.skeleton.n_joints} joints "
-                f"({', '.join(motion.skeleton.names[:3])}, ...); it must be on the canonical skeleton "
-                "(retarget it first: motion-style retarget)"
-            )
-        if not (np.isfinite(motion.rotations).all() and np.isfinite(motion.positions).all()):
-            raise MotionStyleError("reference clip has NaN or infinite values")
-        if motion.fps != self.fps:
-            motion = resample(motion, self.fps)
-        motion = self.conformed(motion)  # the encoder reads rotations: in the training data's frames
-        if motion.n_frames < self.window:
-            raise MotionStyleError(
-                f"reference clip too short: {motion.n_frames} frames at {self.fps:g} fps; it needs at "
-                f"least {self.window} ({self.window / self.fps:.1f} s)"
-            )
+        motion = self.reference_clip(motion, self.window)
         features = encode(motion)
         features = features[: len(features) // 4 * 4][None].astype(np.float32)
         out = self.style_encoder.run(features=features)
