@@ -27,7 +27,15 @@ from tqdm import tqdm
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.training import hardware
-from motion_style_ros.training.data import Data, DataConfig, data_tag, load_for, recipe
+from motion_style_ros.training.data import (
+    Data,
+    DataConfig,
+    data_tag,
+    load_for,
+    normalisation,
+    recipe,
+)
+from motion_style_ros.training.losses import Losses
 
 CHECKPOINTS = Path.home() / ".cache" / "motion_style_ros" / "checkpoints"
 PROGRESS_INTERVAL = 0.1 if sys.stderr.isatty() else 30.0  # progress lines in a log file: one per 30 s
@@ -60,6 +68,14 @@ class ResumableTrainer(ABC):
         self.device = device or torch.device("cpu")
         self.dir = self.folder(checkpoints, cfg.seed, cfg.data)
         self.state = {"iteration": 0, "train_seconds": 0.0, "val": []}
+
+    def normalised_losses(self) -> tuple[np.ndarray, np.ndarray]:
+        """The train split's per-feature mean and std (std floored at the config's ``std_floor``),
+        what the networks normalise with, and ``self.losses`` (the shared loss terms) on them, on
+        this trainer's device."""
+        mean, std = normalisation(self.data.splits["train"].features, self.cfg.std_floor)
+        self.losses = Losses(self.cfg, mean, std).to(self.device)
+        return mean, std
 
     def shard(self, *tensors: torch.Tensor) -> tuple[torch.Tensor, ...]:
         """This process's share of a global batch, on its device (:func:`hardware.shard`)."""
@@ -273,6 +289,22 @@ def fit(trainer_class: type[ResumableTrainer], cfg: DataConfig, data: Data | Non
         setup_s = time.perf_counter() - started
         trainer.run(minutes, iterations, log_every=log_every, val_every=val_every)
     return trainer, data, setup_s
+
+
+def fit_for_export(trainer_class: type[ResumableTrainer], cfg: DataConfig, data: Data | None,
+                   checkpoints: Path, threads: int, device: str | None, progress: bool, resume: bool,
+                   minutes: float | None, iterations: int | None, log_every: int, val_every: int,
+                   command: str, licence: str | None, prepare=None
+                   ) -> tuple[ResumableTrainer, Data, dict, np.ndarray] | None:
+    """:func:`fit`, then what every trainer's export takes on rank 0: the trainer, the data, the
+    card's record of the run (:func:`card_record`) and the probe clip (the longest val clip, on
+    which the export compares ONNX with torch); None in the other processes (they export nothing)."""
+    trainer, data, setup_s = fit(trainer_class, cfg, data, checkpoints, threads, device, progress, resume,
+                                 minutes, iterations, log_every, val_every, prepare)
+    if trainer.rank:
+        return None
+    probe = max(data.splits["val"].features, key=len)
+    return trainer, data, card_record(trainer, data, setup_s, command, licence), probe
 
 
 def card_record(trainer: ResumableTrainer, data: Data, setup_seconds: float, command: str,

@@ -46,7 +46,6 @@ from motion_style_ros.training.data import (
     Clips,
     Data,
     DataConfig,
-    normalisation,
     other_styles,
     style_windows,
     windows,
@@ -54,8 +53,7 @@ from motion_style_ros.training.data import (
 from motion_style_ros.training.loop import (
     CHECKPOINTS,
     ResumableTrainer,
-    card_record,
-    fit,
+    fit_for_export,
     update_average,
 )
 from motion_style_ros.training.losses import Losses, pose, val_scores
@@ -182,8 +180,7 @@ class Trainer(ResumableTrainer):
     def __init__(self, cfg: Config, data: Data, checkpoints: Path = CHECKPOINTS,
                  progress: bool = True, device: torch.device | None = None) -> None:
         super().__init__(cfg, data, checkpoints, progress, device)
-        mean, std = normalisation(data.splits["train"].features, cfg.std_floor)
-        self.losses = Losses(cfg, mean, std).to(self.device)
+        mean, std = self.normalised_losses()
         net = cfg.networks(data.styles)
         torch.manual_seed(cfg.seed)
         self.most = MoST(net, mean, std).to(self.device)
@@ -327,15 +324,15 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     """Train (resuming when asked) on ``device`` (default: the best there is; under ``torchrun``, in
     every process), export the weight average with every style's mean features to ``out_dir``;
     returns the card (None in the processes other than rank 0, which export nothing)."""
-    trainer, data, setup_s = fit(Trainer, cfg, data, checkpoints, threads, device, progress, resume,
-                                 minutes, iterations, log_every, val_every)
-    if trainer.rank:
+    fitted = fit_for_export(Trainer, cfg, data, checkpoints, threads, device, progress, resume, minutes,
+                            iterations, log_every, val_every, command, licence)
+    if fitted is None:  # not rank 0
         return None
+    trainer, data, record, probe = fitted
     model = trainer.most_ema.eval()
     means = style_means(model, data.splits["train"], len(data.styles), cfg.means_per_style, cfg.seed)
-    probe = max(data.splits["val"].features, key=len)
     info = {
-        **card_record(trainer, data, setup_s, command, licence),
+        **record,
         "exported": f"exponential moving average of the model's weights (decay {cfg.ema}); every "
                     f"style's mean style features over {cfg.means_per_style} train windows",
         "differences_from_paper": [

@@ -28,7 +28,6 @@ from motion_style_ros.training import hardware
 from motion_style_ros.training.data import (
     Data,
     DataConfig,
-    normalisation,
     other_styles,
     windows,
 )
@@ -36,8 +35,7 @@ from motion_style_ros.training.loop import (
     CHECKPOINTS,
     PROGRESS_INTERVAL,
     ResumableTrainer,
-    card_record,
-    fit,
+    fit_for_export,
     update_average,
 )
 from motion_style_ros.training.losses import Losses, val_scores
@@ -192,8 +190,7 @@ class Trainer(ResumableTrainer):
     def __init__(self, cfg: Config, data: Data, checkpoints: Path = CHECKPOINTS,
                  progress: bool = True, device: torch.device | None = None) -> None:
         super().__init__(cfg, data, checkpoints, progress, device)
-        mean, std = normalisation(data.splits["train"].features, cfg.std_floor)
-        self.losses = Losses(cfg, mean, std).to(self.device)
+        mean, std = self.normalised_losses()
         with hardware.rank_zero_first():  # the others read the network rank 0 trained and saved
             self.content, self.content_info = content_network(cfg, data, self.losses, self.dir / "content_net.pt",
                                                               self.progress, self.device)
@@ -296,13 +293,13 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     """Train (resuming when asked) on ``device`` (default: the best there is; under ``torchrun``,
     in every process), export the weight-averaged generator to ``out_dir``; returns the model card
     (None in the processes other than rank 0, which export nothing)."""
-    trainer, data, setup_s = fit(Trainer, cfg, data, checkpoints, threads, device, progress, resume,
-                                 minutes, iterations, log_every, val_every)
-    if trainer.rank:
+    fitted = fit_for_export(Trainer, cfg, data, checkpoints, threads, device, progress, resume, minutes,
+                            iterations, log_every, val_every, command, licence)
+    if fitted is None:  # not rank 0
         return None
-    probe = max(data.splits["val"].features, key=len)
+    trainer, data, record, probe = fitted
     info = {
-        **card_record(trainer, data, setup_s, command, licence),
+        **record,
         "contents": list(data.contents),
         "exported": f"exponential moving average of the generator weights (decay {cfg.ema})",
         "differences_from_paper": [

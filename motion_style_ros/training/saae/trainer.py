@@ -45,18 +45,16 @@ from motion_style_ros.training.data import (
     Data,
     DataConfig,
     data_tag,
-    normalisation,
     style_windows,
     windows,
 )
 from motion_style_ros.training.loop import (
     CHECKPOINTS,
     ResumableTrainer,
-    card_record,
-    fit,
+    fit_for_export,
     update_average,
 )
-from motion_style_ros.training.losses import Losses, val_scores
+from motion_style_ros.training.losses import val_scores
 from motion_style_ros.training.saae.export import model_name, write_model
 
 NAME = "saae"
@@ -122,8 +120,7 @@ class Trainer(ResumableTrainer):
                  progress: bool = True, device: torch.device | None = None) -> None:
         super().__init__(cfg, data, checkpoints, progress, device)
         self.dir = checkpoints / f"{model_name(cfg.variant, cfg.style_dim)}{data_tag(cfg.data)}_{cfg.seed}"
-        mean, std = normalisation(data.splits["train"].features, cfg.std_floor)
-        self.losses = Losses(cfg, mean, std).to(self.device)
+        mean, std = self.normalised_losses()
         net = self.net = cfg.networks(data.styles)
         n = len(data.styles)
         torch.manual_seed(cfg.seed)
@@ -277,13 +274,13 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
     """Train (resuming when asked) on ``device``, export the weight averages to ``out_dir`` as
     :func:`~motion_style_ros.training.saae.export.model_name`; returns the card (None in processes
     other than rank 0)."""
-    trainer, data, setup_s = fit(Trainer, cfg, data, checkpoints, threads, device, progress, resume,
-                                 minutes, iterations, log_every, val_every)
-    if trainer.rank:
+    fitted = fit_for_export(Trainer, cfg, data, checkpoints, threads, device, progress, resume, minutes,
+                            iterations, log_every, val_every, command, licence)
+    if fitted is None:  # not rank 0
         return None
-    probe = max(data.splits["val"].features, key=len)
+    trainer, data, record, probe = fitted
     info = {
-        **card_record(trainer, data, setup_s, command, licence),
+        **record,
         "exported": f"exponential moving averages of the encoder's, decoder's and style classifier's weights "
                     f"(decay {cfg.ema})",
         "differences_from_paper": [

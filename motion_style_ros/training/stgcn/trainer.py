@@ -36,13 +36,12 @@ from motion_style_ros.models.stgcn import (
 from motion_style_ros.training.data import (
     Data,
     DataConfig,
-    normalisation,
     other_styles,
     style_windows,
     windows,
 )
-from motion_style_ros.training.loop import CHECKPOINTS, ResumableTrainer, card_record, fit, update_average
-from motion_style_ros.training.losses import Losses, pose, val_scores
+from motion_style_ros.training.loop import CHECKPOINTS, ResumableTrainer, fit_for_export, update_average
+from motion_style_ros.training.losses import pose, val_scores
 from motion_style_ros.training.stgcn.export import write_model
 
 NAME = "stgcn"
@@ -129,8 +128,7 @@ class Trainer(ResumableTrainer):
     def __init__(self, cfg: Config, data: Data, checkpoints: Path = CHECKPOINTS,
                  progress: bool = True, device: torch.device | None = None) -> None:
         super().__init__(cfg, data, checkpoints, progress, device)
-        mean, std = normalisation(data.splits["train"].features, cfg.std_floor)
-        self.losses = Losses(cfg, mean, std).to(self.device)
+        mean, std = self.normalised_losses()
         net = cfg.networks(data.styles)
         torch.manual_seed(cfg.seed)
         self.gen, self.mapping, self.encoder, self.dis = (m.to(self.device) for m in (
@@ -306,13 +304,13 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
             if not trainer.rank:
                 print(f"continuing seed {init_from}'s run at iteration {trainer.state['iteration']}")
 
-    trainer, data, setup_s = fit(Trainer, cfg, data, checkpoints, threads, device, progress, resume,
-                                 minutes, iterations, log_every, val_every, continue_other_run)
-    if trainer.rank:
+    fitted = fit_for_export(Trainer, cfg, data, checkpoints, threads, device, progress, resume, minutes,
+                            iterations, log_every, val_every, command, licence, continue_other_run)
+    if fitted is None:  # not rank 0
         return None
-    probe = max(data.splits["val"].features, key=len)
+    trainer, data, record, probe = fitted
     info = {
-        **card_record(trainer, data, setup_s, command, licence),
+        **record,
         **({"continued_from": trainer.state["init_from"]} if "init_from" in trainer.state else {}),
         "exported": f"exponential moving averages of the three networks' weights (decay {cfg.ema})",
         "differences_from_paper": [
