@@ -20,9 +20,10 @@ How a frame is mapped
   soles' height above the floor, the soles' penetration of the floor, and small pulls towards the
   previous frame's joints and the zero pose (which hold joints the bones do not determine, e.g. a
   straight arm's twist). The bounds are the joints' position limits.
-* A human foot counts as planted while its ankle is within ``PLANTED_HEIGHT`` of the planted-ankle
-  height and moves slower than ``PLANTED_SPEED`` horizontally; that height starts where the package
-  grounds motion (``ANKLE_HEIGHT``) and follows the stream's lower ankle at a bounded rate.
+* A human foot counts as planted while its ankle is within ``PLANTED_HEIGHT`` of its planted-ankle
+  height and moves slower than ``PLANTED_SPEED`` horizontally; each foot's height starts where the
+  package grounds motion (``ANKLE_HEIGHT``) and follows that ankle at a bounded rate, at most
+  ``FOOT_SPREAD`` above the other foot's.
 * A joint whose solved step from the previous frame exceeds its velocity limit times the frame
   interval is counted (``stats["velocity_violations"]``, before clamping); the frame is then solved
   again with the bounds narrowed to what each joint can reach (from the clamped pose, so the other
@@ -31,8 +32,8 @@ How a frame is mapped
   solve, plus any the final clamp moved; ``stats["position_violations"]`` the values outside their
   position limits before clamping (zero by construction of the bounded solve);
   ``stats["at_position_limit"]`` the values the bounds held at a position limit (the human asked
-  for more than the joint allows). Finally the base moves vertically so that the planted soles rest
-  on the floor on average.
+  for more than the joint allows). Finally the base moves vertically so that the planted feet's
+  lowest sole points rest on the floor (on average) and no sole point of either foot is under it.
 
 Why this solver
 ---------------
@@ -84,13 +85,16 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.urdf import RobotModel, read
 
 ACTUATED = ("revolute", "continuous", "prismatic")
-# Streaming contact: a foot is planted while its ankle is within PLANTED_HEIGHT of the planted-ankle
-# height and slow. That height starts at ANKLE_HEIGHT (where the package grounds motion: the training
-# data's planted ankles, io.resources.rotation_stats()["ankle_height"]) and follows the lower ankle at
-# up to FLOOR_DOWN m/s downwards and FLOOR_UP m/s upwards.
+# Streaming contact: a foot is planted while its ankle is within PLANTED_HEIGHT of its planted-ankle
+# height and slow. Each foot's height starts at ANKLE_HEIGHT (where the package grounds motion: the
+# training data's planted ankles, io.resources.rotation_stats()["ankle_height"]) and follows its ankle
+# at up to FLOOR_DOWN m/s downwards and FLOOR_UP m/s upwards, at most FOOT_SPREAD above the other
+# foot's: a stylized or asymmetric performer may plant one ankle a few centimetres higher than the
+# other (an elderly stoop measured 3.3 cm), but a foot held still well above the other is lifted.
 ANKLE_HEIGHT = 0.117
 FLOOR_DOWN = 0.5
 FLOOR_UP = 0.05
+FOOT_SPREAD = 0.05
 PLANTED_HEIGHT = 0.03
 PLANTED_SPEED = 0.4  # m/s horizontal ankle speed below which a low foot is planted (streaming)
 GAP_SECONDS = 0.5  # a frame this long after the previous one starts without a velocity limit
@@ -499,7 +503,6 @@ class RobotTarget:
         self._foot_bodies = np.array([f["body"] for f in self._feet])
         self._foot_axes = np.array([[f["x"], f["z"]] for f in self._feet])  # (2, 2, 3)
         self._contacts = [np.array(f["contacts"]) for f in self._feet]
-        self._soles = np.array([f["sole"] for f in self._feet])
         self._height_pts = np.concatenate([[f["sole"]] + list(f["contacts"]) for f in self._feet])
         self._height_counts = np.array([1 + len(f["contacts"]) for f in self._feet])
         self._height_is_sole = np.concatenate([[True] + [False] * len(f["contacts"]) for f in self._feet])
@@ -557,7 +560,7 @@ class RobotTarget:
         self._t = None
         self._h_prev = None
         self._ankle_prev = None
-        self._floor = self.ankle_height
+        self._floor = np.full(2, self.ankle_height)
         self._contact = np.zeros(2)
         self._foot_pitch = np.full(2, FOOT_PITCH)
         self.base_pose = (np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]))
@@ -601,11 +604,11 @@ class RobotTarget:
         # Feet: planted, and heading.
         ankles = p_ros[self._ankles]
         heights = ankles[:, 2]
-        # The planted-ankle height (one for both feet) follows the lower ankle, quickly down and slowly
-        # up and never by more than a rate: a glitched frame does not move it.
-        h_low = float(heights.min())
+        # Each foot's planted-ankle height follows its ankle, quickly down and slowly up and never by
+        # more than a rate (a glitched frame does not move it), within FOOT_SPREAD of the other's.
         if not fresh:
-            self._floor += float(np.clip(h_low - self._floor, -FLOOR_DOWN * dt, FLOOR_UP * dt))
+            self._floor += np.clip(heights - self._floor, -FLOOR_DOWN * dt, FLOOR_UP * dt)
+            self._floor = np.minimum(self._floor, self._floor.min() + FOOT_SPREAD)
         low = heights < self._floor + PLANTED_HEIGHT
         if fresh or self._ankle_prev is None or dt <= 0:
             planted = low
@@ -670,11 +673,15 @@ class RobotTarget:
         safe = np.clip(q, self.lower, self.upper)
         self.stats["clamped"] += int((np.abs(safe - q) > eps).sum())
         q = safe
-        # Planted soles back on the floor (on average) after the clamp.
+        # Planted feet back on the floor after the clamp: their lowest sole points on it (on
+        # average), and then no sole point of either foot under it, as a real floor holds a robot.
         pts, frames = self._points(q)
-        sole_h = pts[self._soles] @ up + z
-        z -= float((contact * sole_h).sum() / max(contact.sum(), 1.0))
         foot_h = np.array([float((pts[c] @ up).min()) + z for c in self._contacts])
+        weight = min(float(contact.sum()), 1.0)
+        shift = float((contact * foot_h).sum() / max(contact.sum(), 1e-9)) if weight else 0.0
+        shift = min(shift, float(foot_h.min()))
+        z -= weight * shift
+        foot_h -= weight * shift
         seg = self._S @ pts
         d_r = seg / np.linalg.norm(seg, axis=1, keepdims=True)
         self.last = {"angles": np.degrees(np.arccos(np.clip((d_r * d_h).sum(axis=1), -1.0, 1.0))),
