@@ -30,14 +30,14 @@ def test_a_larger_or_smaller_performer_is_brought_to_the_training_size(walk, siz
     reference = float(rotation_stats()["scale_reference"])
     root = walk.positions[:, walk.skeleton.pelvis]
     other = Motion.from_rotations(walk.skeleton, walk.rotations, root[:1] + (root - root[:1]) * size, 120.0)
-    out = conditioned(other, 30.0)
+    out = conditioned(other, 30.0, rotation_stats())
     assert out.fps == 30.0 and out.n_frames == pytest.approx(walk.n_frames / 4, abs=1)
     assert clip_scale(other, reference) == pytest.approx(size * clip_scale(walk, reference), rel=0.1)
     assert clip_scale(out, reference) == pytest.approx(1.0, abs=0.08)
 
 
 def test_cmu_subject_clips_with_their_speed_and_mirrored_copies(datasets):
-    names = [n for n, _ in sources("cmu:07")]
+    names = [n for n, _ in sources("cmu:07", rotation_stats())]
     assert len(names) == 12 and names[0] == "cmu 07_01"
     plain, _ = load_unlabelled(("cmu:07",), 30.0, progress=False)
     features, listed = load_unlabelled(("cmu:07",), 30.0, speeds=(0.8,), mirror=True, progress=False)

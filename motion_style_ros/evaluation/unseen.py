@@ -35,21 +35,26 @@ FLIP_DEGREES = 90.0
 
 
 def neutral_clips(root: Path | None = None, leave_out: tuple[str, ...] = ()) -> list[tuple[str, Motion]]:
-    """Every CMU clip (neutral performances, calibration T-pose dropped) and the Xia neutral clips,
-    retargeted to the canonical skeleton, their planted ankles at the training data's height (the
-    sessions conform their arm rolls); titled ``"cmu 02_01 (walk)"``. ``leave_out``: clips a model
-    trained on (its card's ``training.clips.unlabelled``, named ``"cmu 02_01"``)."""
+    """Every CMU clip (neutral performances) and the Xia neutral clips (:func:`canonical_unseen`),
+    titled ``"cmu 02_01 (walk)"``. ``leave_out``: clips a model trained on (its card's
+    ``training.clips.unlabelled``, named by :func:`clip_name`)."""
     infos = datasets.index_cmu(root) + [i for i in datasets.index_xia(root) if i.style == "neutral"]
     stats = rotation_stats()
-    clips = []
-    for info in infos:
-        if f"{info.dataset} {info.name}" in leave_out:
-            continue
-        motion = datasets.load_clip(info)
-        motion = motion[1:] if info.dataset == "cmu" else motion
-        canon = ground(retarget(motion, canonical()), stats)
-        clips.append((f"{info.dataset} {info.name} ({info.content})", canon))
-    return clips
+    return [(f"{clip_name(info)} ({info.content})", canonical_unseen(info, stats))
+            for info in infos if clip_name(info) not in leave_out]
+
+
+def clip_name(info: datasets.ClipInfo) -> str:
+    """How cards and reports name a CMU or Xia clip: ``"cmu 02_01"``."""
+    return f"{info.dataset} {info.name}"
+
+
+def canonical_unseen(info: datasets.ClipInfo, stats: dict[str, np.ndarray]) -> Motion:
+    """A CMU or Xia clip on the canonical skeleton (a CMU file's calibration T-pose dropped), its
+    planted ankles at the training data's height (the sessions conform its arm rolls)."""
+    motion = datasets.load_clip(info)
+    motion = motion[1:] if info.dataset == "cmu" else motion
+    return ground(retarget(motion, canonical()), stats)
 
 
 def capture_setup(title: str) -> str:

@@ -20,6 +20,7 @@ from motion_style_ros.core.resample import at_speed
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import BANDAI_FPS, index_bandai, load_bandai
 from motion_style_ros.io.user_data import MIN_TAKES, folder_id, load_folder
+from motion_style_ros.training.unlabelled import load_unlabelled
 
 NEUTRAL = "normal"
 USER_LICENCE = "as the user's data"  # a model trained on a user's folder, unless they state its licence
@@ -175,8 +176,6 @@ def load_for(cfg: DataConfig, progress: bool = True) -> Data:
     data = load_data(cfg.datasets, progress, speeds=cfg.speeds, balance=cfg.balance, mirror=cfg.mirror,
                      exclude=cfg.exclude, folder=cfg.data or None, neutral=cfg.neutral)
     if cfg.unlabelled:
-        from motion_style_ros.training.unlabelled import load_unlabelled
-
         features, names = load_unlabelled(cfg.unlabelled, FPS, cfg.speeds, cfg.mirror, progress)
         unknown = np.full(len(features), -1)
         data = replace(data, unlabelled=Clips(features, unknown, unknown), unlabelled_names=tuple(names))

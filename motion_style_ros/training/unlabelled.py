@@ -21,9 +21,8 @@ from motion_style_ros.core.mirror import mirror as mirror_motion
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.proportions import clip_scale
 from motion_style_ros.core.resample import at_speed, resample
-from motion_style_ros.core.retarget import retarget
-from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.evaluation.unseen import canonical_unseen, clip_name
 from motion_style_ros.io import datasets
 from motion_style_ros.io.canonical import canonical_clip
 from motion_style_ros.io.resources import rotation_stats
@@ -31,17 +30,16 @@ from motion_style_ros.io.resources import rotation_stats
 CMU_PREFIX = "cmu:"  # "cmu:07": every clip of CMU subject 07 in the datasets folder
 
 
-def sources(spec: str) -> list[tuple[str, Motion]]:
+def sources(spec: str, stats: dict[str, np.ndarray]) -> list[tuple[str, Motion]]:
     """The clips ``spec`` names, each ``(name, motion on the canonical skeleton, grounded)``:
-    ``cmu:SUBJECT`` (the clip names as ``eval --unseen`` gives them, T-pose dropped) or a BVH file
-    or folder of BVH files (any rig :func:`canonical_clip` takes)."""
+    ``cmu:SUBJECT`` (named and loaded as ``eval --unseen`` names and loads them) or a BVH file or
+    folder of BVH files (any rig :func:`canonical_clip` takes)."""
     if spec.startswith(CMU_PREFIX):
         subject = spec[len(CMU_PREFIX):]
         infos = [i for i in datasets.index_cmu() if i.name.split("_")[0] == subject]
         if not infos:
             raise MotionStyleError(f"--unlabelled {spec}: no CMU clips of subject {subject!r}")
-        stats = rotation_stats()
-        return [(f"cmu {i.name}", ground(retarget(datasets.load_clip(i)[1:], canonical()), stats)) for i in infos]
+        return [(clip_name(i), canonical_unseen(i, stats)) for i in infos]
     path = Path(spec).expanduser()
     files = sorted(path.rglob("*.bvh")) if path.is_dir() else [path]
     if not files or not files[0].is_file():
@@ -49,10 +47,10 @@ def sources(spec: str) -> list[tuple[str, Motion]]:
     return [(str(f), canonical_clip(str(f))) for f in files]
 
 
-def conditioned(motion: Motion, fps: float) -> Motion:
+def conditioned(motion: Motion, fps: float, stats: dict[str, np.ndarray]) -> Motion:
     """``motion`` as a stream session feeds it to a model at ``fps``: arm rolls conformed, root
-    displacements divided by the performer's size from where the clip starts, grounded again."""
-    stats = rotation_stats()
+    displacements divided by the performer's size from where the clip starts, grounded again
+    (``stats``: :func:`~motion_style_ros.io.resources.rotation_stats`)."""
     motion = conform_rolls(motion, stats)
     scale = clip_scale(resample(motion, fps), float(stats["scale_reference"]))
     root = motion.positions[:, motion.skeleton.pelvis]
@@ -64,10 +62,11 @@ def load_unlabelled(specs: tuple[str, ...], fps: float, speeds: tuple[float, ...
                     progress: bool = True) -> tuple[list[np.ndarray], list[str]]:
     """Encoded features of every clip ``specs`` name (also at ``speeds`` and mirrored, as the
     labelled takes), and the clip names (for the model card and ``eval --unseen``)."""
+    stats = rotation_stats()
     features, names = [], []
     for spec in specs:
-        for name, motion in tqdm(sources(spec), desc=f"unlabelled {spec}", disable=not progress):
-            base = conditioned(motion, fps)
+        for name, motion in tqdm(sources(spec, stats), desc=f"unlabelled {spec}", disable=not progress):
+            base = conditioned(motion, fps, stats)
             variants = [base, *(at_speed(base, v) for v in speeds)]
             if mirror:
                 variants += [mirror_motion(v) for v in variants]
