@@ -106,6 +106,12 @@ def tiny_config(**changes) -> Config:
                           ds_iterations=10), **changes)
 
 
+def _mean_over(rows: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+    """The mean of ``values`` over the ``rows`` chosen (0 where none is: under torchrun a process's
+    share of a batch may hold unlabelled windows only)."""
+    return (values * rows).sum() / rows.sum().clamp(min=1)
+
+
 def _at(logits: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
     """Each row's logit of its style: ``(B, S)``, ``(B,)`` -> ``(B,)``."""
     return logits.gather(1, style[:, None])[:, 0]
@@ -206,13 +212,13 @@ class Trainer(ResumableTrainer):
             fake, _ = self.full(self.gen(x, s_trg), contacts)
         lazy = iteration % cfg.r1_every == 0
         x_real = x.clone().requires_grad_(lazy)
-        d_real = _at(self.dis_synced(x_real), style.clamp(min=0))[labelled]
+        d_real = _at(self.dis_synced(x_real), style.clamp(min=0))
         r1 = torch.zeros((), device=self.device)
         if lazy:
             (grad,) = torch.autograd.grad(d_real.sum(), x_real, create_graph=True)
-            r1 = 0.5 * (grad * self.in_std).pow(2).sum(dim=(1, 2))[labelled].mean()  # w.r.t. normalised input
+            r1 = 0.5 * _mean_over(labelled, (grad * self.in_std).pow(2).sum(dim=(1, 2)))  # w.r.t. normalised input
         d_fake = _at(self.dis_synced(fake), target)
-        critic = F.softplus(-d_real).mean() + F.softplus(d_fake).mean()
+        critic = _mean_over(labelled, F.softplus(-d_real)) + F.softplus(d_fake).mean()
         self.opt_d.zero_grad()
         (critic + cfg.w_r1 * cfg.r1_every * r1).backward()
         self.opt_d.step()
@@ -232,7 +238,7 @@ class Trainer(ResumableTrainer):
             ds = apart.mean(dim=(1, 2)).clamp(max=cfg.ds_cap).mean() / self.losses.pos_scale
         codes, logits = self.encoder_synced(x)
         s_src = pick(codes, torch.where(labelled, style, logits.detach().argmax(-1)))
-        cls = F.cross_entropy(logits[labelled], style[labelled])
+        cls = _mean_over(labelled, F.cross_entropy(logits, style.clamp(min=0), reduction="none"))
         real = self.losses.views(x[..., : self.gen.cfg.n_out])
         cyc = sum(self.losses.reconstruction(self.losses.views(self.gen_synced(fake, s_src)), real).values())
         idt = sum(self.losses.reconstruction(self.losses.views(self.gen_synced(x, s_src)), real).values())
