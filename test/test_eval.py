@@ -158,3 +158,15 @@ def test_the_recurrent_stylizer_is_scored_through_its_streaming_session(clips, j
     source = walks[0][1]
     out = stylize(source, "elderly")
     assert out.n_frames == source.n_frames and not np.allclose(out.rotations, source.rotations)
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--reference-codes", "--stylizer", "recurrent"], "--reference-codes scores backends that take reference clips"),
+    (["--reference-codes"], "--reference-codes scores backends that take reference clips"),
+    (["--same-content", "--stylizer", "stgcn"], "--same-content and --consistency go with --reference-codes"),
+    (["--consistency", "--stylizer", "stgcn"], "--same-content and --consistency go with --reference-codes"),
+])
+def test_reference_code_flags_that_do_not_go_together_are_one_line(flags, message, tmp_path):
+    out = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "eval", "--out", str(tmp_path),
+                          *flags], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and message in out.stderr and len(out.stderr.strip().splitlines()) == 1

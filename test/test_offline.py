@@ -61,14 +61,14 @@ def test_stylize_with_a_reference_clip_on_the_stgcn_backend(datasets, tmp_path):
         out = stylize_cli(source, "-o", tmp_path / f"ref{seed}.bvh", "--backend", "stgcn", "--model", model,
                           "--reference", reference, "--seed", seed)
         assert out.returncode == 0, out.stderr
-        assert "style code read as" in out.stdout
+        assert "style read as" in out.stdout
         outputs[seed] = bvh.read(tmp_path / f"ref{seed}.bvh").to_motion(scale=0.01)
     hips = outputs[0].global_positions()[:, 1]
     assert 0.7 < np.median(hips[:, 1]) < 1.1  # metres in, centimetres out: a standing pelvis height
     # the reference's code replaces the seed's for its style: the seed no longer matters
     assert np.allclose(outputs[0].rotations, outputs[1].rotations)
     recurrent = stylize_cli(source, "-o", tmp_path / "r.bvh", "--reference", reference)
-    assert recurrent.returncode == 2 and "need --backend stgcn" in recurrent.stderr
+    assert recurrent.returncode == 2 and "needs --backend stgcn" in recurrent.stderr
     assert len(recurrent.stderr.strip().splitlines()) == 1
 
 

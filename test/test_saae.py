@@ -135,6 +135,30 @@ def test_reference_clips_move_model2s_style_input_and_only_model2_takes_them(mod
             walk.skeleton, walk.rotations[:10], walk.positions[:10, walk.skeleton.pelvis], walk.fps))
 
 
+def test_node_settings_set_and_drop_a_reference_on_a_backend_without_seeds(models, walk):
+    """The node's apply (runtime.stylizer_settings) puts a reference's code over its style's input
+    and, when the parameter is emptied, gives every style its own input back."""
+    from motion_style_ros.runtime import stylizer_settings
+    from motion_style_ros.runtime.backends import PENDING
+    from motion_style_ros.runtime.defaults import DEFAULTS
+
+    spec = PENDING["saae"]
+    session = SaaeSession(models["model2"], input_fps=walk.fps, blend_seconds=0.0)
+    own = session.style_inputs().copy()
+    reference = session.reference_codes(walk)
+    current = {**DEFAULTS, "target_style": "normal", "alpha": 1.0, "mix_style": "", "mix_weight": 0.0,
+               "reference": "", "latent_seed": 0}
+    stylizer_settings.apply([session], spec, current, {"reference": "walk.bvh", "target_style": "elderly"},
+                            reference)
+    k = session.styles.index("elderly")
+    assert np.allclose(session.style_inputs()[k], reference[0]) and session.controls._primary[0] == k
+    others = [i for i in range(len(session.styles)) if i != k]
+    assert np.allclose(session.style_inputs()[others], own[others])
+    stylizer_settings.apply([session], spec, {**current, "reference": "walk.bvh", "target_style": "elderly"},
+                            {"reference": ""}, None)
+    assert np.allclose(session.style_inputs(), own)
+
+
 def test_the_backend_entry_names_this_session():
     from motion_style_ros.runtime.backends import PENDING
 

@@ -230,27 +230,6 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
     assert set(figures["step_ms"]) == {"hop 1", "hop 8"}
 
 
-def test_reference_stylizer_takes_its_code_from_another_content(random_model, datasets):
-    from motion_style_ros.evaluation.harness import SkipPair
-    from motion_style_ros.evaluation.harness import PUBLISHED
-    from motion_style_ros.evaluation.windowed import ReferenceStylizer
-
-    names = [("walk", "normal", "001"), ("walk", "elderly", "008"), ("run", "elderly", "001")]
-    clips = [(ClipInfo("bandai-2", datasets / BANDAI / f"dataset-2_{c}_{s}_{t}.bvh",
-                       f"dataset-2_{c}_{s}_{t}", c, s, t, "test"), None) for c, s, t in names]
-    clips = [(info, load_clip(info)) for info, _ in clips]
-    stylize = ReferenceStylizer(clips, random_model)
-    source = clips[0][1]
-    out = stylize(source, "elderly")  # the run, not the elderly walk, gives the code
-    assert out.n_frames == source.n_frames and np.isfinite(out.global_positions()).all()
-    session = WindowedSession(random_model, **PUBLISHED)
-    session.set_reference(clips[2][1], style="elderly")
-    expected = session.run(source, "elderly")
-    assert np.array_equal(out.global_positions(), expected.global_positions())
-    with pytest.raises(SkipPair, match="no test take in style youthful"):
-        stylize(source, "youthful")
-
-
 # --- the trained model ---------------------------------------------------------------------------
 
 TRAINED = models_dir() / "stgcn.onnx"

@@ -6,9 +6,9 @@ import argparse
 
 
 def _stylizers():
-    from motion_style_ros.runtime.offline import STYLIZERS
+    from motion_style_ros.runtime.backends import BACKENDS
 
-    return tuple(STYLIZERS)
+    return tuple(BACKENDS)
 
 
 def add_parser(subparsers):
@@ -52,9 +52,16 @@ def add_parser(subparsers):
                    help="stgcn: seeds' codes spread S times as far from their style's mean code "
                         "(default: 1, as trained); --record writes it as eval_seed_spread_S")
     p.add_argument("--reference-codes", action="store_true",
-                   help="stgcn: take each pair's style code from a test take of the target style "
-                        "and another content (through the style encoder) instead of a latent seed; "
-                        "--record writes it as eval_reference_codes")
+                   help="backends that take reference clips: take each pair's style from a test "
+                        "take of the target style and another content (through the style encoder) "
+                        "instead of the style's own; --record writes it as eval_reference_codes")
+    p.add_argument("--same-content", action="store_true",
+                   help="--reference-codes: references of the input's content (another take); "
+                        "--record writes it as eval_reference_codes_same_content")
+    p.add_argument("--consistency", action="store_true",
+                   help="--reference-codes: also MoST's content and style consistencies (CC, "
+                        "SC++; local joint positions, m) with references of the same and of another "
+                        "content, on one seeded pair per test take")
     p.add_argument("--enrol", default=None, metavar="STYLE",
                    help="instead (stgcn): enrol STYLE, a Bandai style the model was not trained on, "
                         "into a style bank from --enrol-clips of its train takes, and score how "
@@ -89,12 +96,17 @@ def run(args: argparse.Namespace) -> int:
 
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.evaluation import harness
-    from motion_style_ros.runtime.backends import backend
+    from motion_style_ros.runtime.backends import backend, with_feature
     from motion_style_ros.runtime.offline import stylizer
 
     names = args.stylizer or []
-    if args.reference_codes and names != ["stgcn"]:
-        raise MotionStyleError("--reference-codes scores the windowed stylizer: give --stylizer stgcn")
+    if args.reference_codes and (not names or not all(backend(n).reference_clips for n in names)):
+        raise MotionStyleError("--reference-codes scores backends that take reference clips: give "
+                               f"--stylizer {' and/or '.join(with_feature('reference_clips'))}")
+    if (args.same_content or args.consistency) and not args.reference_codes:
+        raise MotionStyleError("--same-content and --consistency go with --reference-codes")
+    if args.reference_codes and args.model and len(names) > 1:
+        raise MotionStyleError("--model names one stylizer's model: give one --stylizer with it")
     if bool(args.data) != bool(args.judges):
         raise MotionStyleError("--data and --judges go together: the shipped judges know the Bandai styles "
                                "only (train them on the folder with 'motion-style train judges --data PATH "
@@ -121,36 +133,68 @@ def run(args: argparse.Namespace) -> int:
     judges, second = _judges(args)
     clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset, folder=args.data)
     if args.reference_codes:
-        from motion_style_ros.evaluation.windowed import DEFAULT_MODEL, ReferenceStylizer
+        from motion_style_ros.evaluation.references import ReferenceStylizer
 
-        stylizers = {"stgcn": ReferenceStylizer(clips, args.model or DEFAULT_MODEL, args.alpha, args.threads,
-                                                 args.seed)}
+        stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed,
+                                             args.same_content) for name in names}
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
+    consistencies = _consistency(args, stylizers, clips, pairs) if args.consistency else None
     stylizers.update(harness.baselines(clips, args.seed))
     settings = {"pairs_per_cell": args.pairs_per_cell, "seed": args.seed, "alpha": args.alpha,
                 "dataset": args.data or args.dataset,
                 **({"data": f"the user's labelled BVH folder {args.data}, test takes"} if args.data else {}),
                 **({} if args.seed_spread is None else {"seed_spread": args.seed_spread})}
+    if args.reference_codes:
+        settings["references"] = (f"a test take of the target style and {'the same' if args.same_content else 'another'} "
+                                  "content as the input's, per pair")
     report = harness.evaluate(stylizers, clips, pairs, *judges, progress=not args.quiet,
                               settings=settings, second=second)
+    if consistencies is not None:
+        from dataclasses import asdict
+
+        report["consistency"] = {name: asdict(c) for name, c in consistencies.items()}
     model = names[0] if names else None
     json_path, png_path = harness.write(report, Path(args.out), model=model)
     print(harness.format_table(report, model=model))
+    if consistencies is not None:
+        from motion_style_ros.evaluation.references import format_consistency
+
+        print(format_consistency(consistencies))
     if args.record:
         summary = {name: {**system["overall"], "fmd_per_style": {
                        s: v["fmd"] for s, v in system["per_style"].items()}}
                    for name, system in report["systems"].items()}
-        key = ("eval_reference_codes" if args.reference_codes
+        key = ("eval_reference_codes" + ("_same_content" if args.same_content else "") if args.reference_codes
                else f"eval_seed_spread_{args.seed_spread:g}" if args.seed_spread is not None
                else "eval" if args.dataset == 2 or args.data else f"eval_dataset{args.dataset}")
-        _record(args, key,
-                {"settings": report["settings"], "systems": summary})
+        _record(args, key, {"settings": report["settings"], "systems": summary,
+                            **({"consistency": report["consistency"]} if consistencies else {})})
     for name, system in report["systems"].items():
         if system["skipped"]:
             print(f"{name}: {len(system['skipped'])} pairs skipped "
                   f"(e.g. {system['skipped'][0]['reason']})")
     print(f"wrote {json_path} and {png_path}")
     return 0
+
+
+def _consistency(args: argparse.Namespace, stylizers: dict, clips: list, pairs: list) -> dict:
+    """MoST's CC and SC++ of the reference stylizers on one seeded pair per test take, against
+    the train takes of the same Bandai set."""
+    import numpy as np
+
+    from motion_style_ros.evaluation.references import consistency
+    from motion_style_ros.io.datasets import index_bandai, load_bandai
+
+    rng = np.random.default_rng(args.seed)
+    by_source: dict[str, list] = {}
+    for pair in pairs:
+        by_source.setdefault(pair.source.name, []).append(pair)
+    chosen = [group[int(rng.integers(len(group)))] for _, group in sorted(by_source.items())]
+    wanted = {(p.source.content, p.target) for p in chosen}
+    train = [i for i in index_bandai(datasets=(args.dataset,))
+             if i.split == "train" and (i.content, i.style) in wanted]
+    return consistency(stylizers, clips, chosen, load_bandai(train, progress=not args.quiet),
+                       progress=not args.quiet)
 
 
 def _judges(args: argparse.Namespace) -> tuple[tuple, tuple | None]:

@@ -23,8 +23,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--style", action="append", default=None,
                    help="target style (repeat for several); see the model card's 'styles'")
     p.add_argument("--reference", metavar="CLIP.bvh", default=None,
-                   help="stgcn backend: move like this clip (its style code from the style encoder; "
-                        "the target style is the one the encoder recognises, unless --style names it)")
+                   help="stgcn, most, saae backends: move like this clip (its style read by the "
+                        "backend's style encoder; the target style is the one the clip is "
+                        "recognised as, unless --style names it)")
     p.add_argument("--seed", type=int, default=0,
                    help="stgcn backend: latent seed of the style codes (default: 0)")
     p.add_argument("--seed-spread", type=float, default=DEFAULTS["seed_spread"], metavar="S",
@@ -51,21 +52,24 @@ def run(args: argparse.Namespace) -> int:
     if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
         raise MotionStyleError(f"{args.render}: --render must end in .png or .gif")
     spec = backend(args.backend)
-    if not spec.latent_seeds and (args.reference or args.seed or args.seed_spread != DEFAULTS["seed_spread"]):
-        raise MotionStyleError(f"--reference, --seed and --seed-spread need --backend "
-                               f"{' or '.join(with_feature('latent_seeds'))} (the {args.backend} backend "
-                               "has no style codes)")
+    if args.reference and not spec.reference_clips:
+        raise MotionStyleError(f"--reference needs --backend {' or '.join(with_feature('reference_clips'))} "
+                               f"(the {args.backend} backend takes no reference clip)")
+    if not spec.latent_seeds and (args.seed or args.seed_spread != DEFAULTS["seed_spread"]):
+        raise MotionStyleError(f"--seed and --seed-spread need --backend {' or '.join(with_feature('latent_seeds'))} "
+                               f"(the {args.backend} backend has no latent seeds)")
     if not args.style and not args.reference:
-        raise MotionStyleError("give a target --style (or, with --backend stgcn, a --reference clip)")
+        raise MotionStyleError("give a target --style (or, with a backend that takes them, a --reference clip)")
     source = canonical_clip(args.input)
-    if spec.reference_clips:
+    if spec.lookahead:
         from motion_style_ros.runtime.offline import windowed
 
         reference = canonical_clip(args.reference) if args.reference else None
-        stylize, recognised = windowed(args.model, args.alpha, args.threads, args.seed, reference,
-                                       (args.style or [None])[0], args.seed_spread)
+        seeds = {"seed": args.seed, "seed_spread": args.seed_spread} if spec.latent_seeds else {}
+        stylize, recognised = windowed(args.backend, args.model, args.alpha, args.threads, reference,
+                                       (args.style or [None])[0], **seeds)
         if reference is not None:
-            print(f"{args.reference}: style code read as {recognised!r}")
+            print(f"{args.reference}: style read as {recognised!r}")
             args.style = args.style or [recognised]
     else:
         stylize = stylizer(args.backend, args.model, args.alpha, args.threads)

@@ -6,14 +6,13 @@ foot skating, distance from the most-context output), and how diverse its latent
 from __future__ import annotations
 
 import time
-import zlib
 from pathlib import Path
 
 import numpy as np
 
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.evaluation.harness import PUBLISHED, Clip, SkipPair
+from motion_style_ros.evaluation.harness import PUBLISHED, Clip
 from motion_style_ros.evaluation.judges import Judge
 from motion_style_ros.evaluation.metrics import foot_skating
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
@@ -55,36 +54,6 @@ def step_times(session: WindowedSession, motion: Motion, style: str) -> np.ndarr
         session.step(motion.rotations[t], roots[t], t / motion.fps)
         times.append((time.perf_counter_ns() - start) / 1e6)
     return np.array(times)
-
-
-class ReferenceStylizer:
-    """The windowed session with its target code from a reference clip instead of a latent seed:
-    for each pair, a test take of the target style and *another* content (chosen per pair with
-    the seed; at least a window long) goes through the style encoder, under the target style's
-    head. It only restyles the
-    test clips it was built with (the reference must not share the source's content)."""
-
-    def __init__(self, clips: list[Clip], model: str | Path = DEFAULT_MODEL, alpha: float = 1.0,
-                 threads: int = 1, seed: int = 0) -> None:
-        self._info = {id(m): info for info, m in clips}
-        self._by_style: dict[str, list[tuple[str, Motion]]] = {}
-        for info, m in sorted(clips, key=lambda c: c[0].name):
-            self._by_style.setdefault(info.style, []).append((info.content, m))
-        self._session = WindowedSession(model, threads=threads, **PUBLISHED)
-        self._alpha, self._seed = alpha, seed
-
-    def __call__(self, source: Motion, target_style: str) -> Motion:
-        info = self._info.get(id(source))
-        if info is None:
-            raise MotionStyleError("the reference stylizer restyles only the test clips it was built with")
-        candidates = [m for content, m in self._by_style.get(target_style, [])
-                      if content != info.content and m.n_frames >= self._session.window]
-        if not candidates:
-            raise SkipPair(f"no test take in style {target_style} of another content than "
-                           f"{info.content} with a window's {self._session.window} frames")
-        rng = np.random.default_rng([self._seed, zlib.crc32(f"{info.name}>{target_style}".encode())])
-        self._session.set_reference(candidates[int(rng.integers(len(candidates)))], style=target_style)
-        return self._session.run(source, target_style, self._alpha)
 
 
 def largest_jump(motion: Motion) -> float:

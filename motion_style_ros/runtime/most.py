@@ -112,11 +112,6 @@ class MostSession(BanklessSession):
         """``(S, 2, parts, dim)``: the performer's features per style as they are now."""
         return self.windows.current_codes()[self.controls.which(performer)]
 
-    def clear_reference(self, performer: int | None = None) -> None:
-        """Every style back to its mean features (drops a reference), blended over ``blend_seconds``."""
-        self.catch_up()
-        self.windows.blend_to(self.controls.which(performer), self.windows.means)
-
     def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         """A clip's style features ``(2, parts, dim)`` (the mean over its windows, a window every
         half window) and how near they are to each style's mean ``(S,)`` (minus the squared

@@ -2,8 +2,8 @@
 shared by ``motion-style stylize`` and ``motion-style eval``, with the sessions' defaults
 (:data:`motion_style_ros.runtime.defaults.DEFAULTS`, the node's) unless a caller passes others.
 
-A stylizer here is ``(source Motion on the canonical skeleton, target style) -> Motion``. Backends
-register a factory in :data:`STYLIZERS` as they land.
+A stylizer here is ``(source Motion on the canonical skeleton, target style) -> Motion``: the
+recurrent session, or a windowed backend's (:func:`windowed`), as the backend's registry entry says.
 """
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from motion_style_ros.runtime.defaults import DEFAULTS
 
 if TYPE_CHECKING:  # the CLI imports this module to build its parser: keep it light
     from motion_style_ros.core.motion import Motion
@@ -46,25 +45,22 @@ def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1, **
                                                   threads=threads, **session), alpha)
 
 
-def stgcn(model: str | None = None, alpha: float = 1.0, threads: int = 1,
-          seed_spread: float = DEFAULTS["seed_spread"], **session) -> Stylizer:
-    """The windowed ST-GCN session: latent seed 0, the default window, hop and lookahead."""
-    return windowed(model, alpha, threads, seed_spread=seed_spread, **session)[0]
+def windowed(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1,
+             reference: "Motion | None" = None, style: str | None = None, seed: int = 0,
+             **session) -> tuple[Stylizer, str | None]:
+    """A windowed backend's session (the default window, hop and lookahead unless ``session`` says
+    otherwise), with latent seed ``seed`` where the backend has seeds and a reference clip's style
+    where it takes them (as the input of ``style``, by default the style the clip is recognised
+    as); the stylizer, and the reference's style."""
+    from motion_style_ros.runtime.backends import backend as spec
 
-
-def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, seed: int = 0,
-             reference: "Motion | None" = None, style: str | None = None,
-             seed_spread: float = DEFAULTS["seed_spread"], **session) -> tuple[Stylizer, str | None]:
-    """The windowed ST-GCN session with a latent seed, or with a reference clip's style code (read
-    by ``style``'s head, by default the style the encoder recognises); the stylizer, and the
-    reference's style."""
-    from motion_style_ros.runtime.windowed import WindowedSession
-
+    made_by = spec(backend)
+    seeds = {"latent_seed": seed} if made_by.latent_seeds else {}
     recognised = []
 
-    def make(fps: float | None) -> WindowedSession:
-        made = WindowedSession(model or default_model("stgcn"), input_fps=fps, threads=threads,
-                               latent_seed=seed, seed_spread=seed_spread, **session)
+    def make(fps: float | None):
+        made = made_by.session_class()(model or made_by.default_model, input_fps=fps, threads=threads,
+                                       **seeds, **session)
         if reference is not None:
             recognised.append(made.set_reference(reference, style))
         return made
@@ -73,22 +69,21 @@ def windowed(model: str | None = None, alpha: float = 1.0, threads: int = 1, see
     return stylize, recognised[0] if recognised else None
 
 
-STYLIZERS: dict[str, Callable[..., Stylizer]] = {"recurrent": recurrent, "stgcn": stgcn}
-
-
 def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1,
              seed_spread: float | None = None, **session) -> Stylizer:
-    """A backend's offline stylizer; ``seed_spread`` (stgcn only): see ``WindowedSession``;
-    ``session``: more session settings (:meth:`~motion_style_ros.runtime.backends.Backend.settings`
-    keeps those a backend takes)."""
+    """A backend's offline stylizer; ``seed_spread`` (backends with latent seeds): see
+    ``WindowedSession``; ``session``: more session settings
+    (:meth:`~motion_style_ros.runtime.backends.Backend.settings` keeps those a backend takes)."""
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime.backends import backend as spec
     from motion_style_ros.runtime.backends import with_feature
 
-    spec(backend)  # an unknown name: one line naming the backends
-    if seed_spread is None:
-        return STYLIZERS[backend](model=model, alpha=alpha, threads=threads, **session)
-    if not spec(backend).latent_seeds:
-        raise MotionStyleError(f"a seed spread needs backend {' or '.join(with_feature('latent_seeds'))} "
-                               f"(latent seeds); {backend} has none")
-    return stgcn(model=model, alpha=alpha, threads=threads, seed_spread=seed_spread, **session)
+    made_by = spec(backend)  # an unknown name: one line naming the backends
+    if seed_spread is not None:
+        if not made_by.latent_seeds:
+            raise MotionStyleError(f"a seed spread needs backend {' or '.join(with_feature('latent_seeds'))} "
+                                   f"(latent seeds); {backend} has none")
+        session["seed_spread"] = seed_spread
+    if not made_by.lookahead:
+        return recurrent(model=model, alpha=alpha, threads=threads, **session)
+    return windowed(backend, model, alpha, threads, **session)[0]

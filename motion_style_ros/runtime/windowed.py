@@ -123,8 +123,9 @@ class OverlapWindows:
         self._fps = float(card["fps"])
 
     def _start_codes(self, performers: int, blend_seconds: float, codes: np.ndarray) -> None:
-        """Every performer starts with ``codes`` (every style's input ``(S, ...)``)."""
+        """Every performer starts with ``codes`` (every style's input ``(S, ...)``), the styles' own."""
         self.performers, self.blend_seconds = performers, blend_seconds
+        self.own_codes = codes
         # codes per performer and style: blended from _codes_from to _codes_to over blend_seconds
         self._codes_to = np.repeat(codes[None], performers, axis=0)
         self._codes_from = self._codes_to.copy()
@@ -360,6 +361,11 @@ class BanklessSession(WindowsSession):
         windows = self.STEP(path, read_card(path), threads, window, hop, lookahead)
         super().__init__(windows, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
                          foot_lock, ground, pipelined, conform, phase_seconds)
+
+    def clear_reference(self, performer: int | None = None) -> None:
+        """Every style back to its own input (drops a reference), blended over ``blend_seconds``."""
+        self.catch_up()
+        self.windows.blend_to(self.controls.which(performer), self.windows.own_codes)
 
 
 class WindowedSession(WindowsSession):
