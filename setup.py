@@ -80,6 +80,7 @@ setup(
             'bag_player = motion_style_ros.nodes.bag_player:main',
             'recorder = motion_style_ros.nodes.recorder:main',
             'synthetic_performer = motion_style_ros.nodes.synthetic_performer:main',
+            'learned_performer = motion_style_ros.nodes.learned_performer:main',
             'vmc_bridge = motion_style_ros.nodes.vmc_bridge:main',
             'stylizer = motion_style_ros.nodes.stylizer:main',
             'stylizer_managed = motion_style_ros.nodes.stylizer_managed:main',

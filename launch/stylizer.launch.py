@@ -1,7 +1,9 @@
-"""Start the stylizer with its params YAML, and optionally the VMC bridge and a synthetic performer.
+"""Start the stylizer with its params YAML, and optionally the VMC bridge and a synthetic or learned
+performer.
 
     ros2 launch motion_style_ros stylizer.launch.py target_style:=elderly alpha:=0.8
     ros2 launch motion_style_ros stylizer.launch.py use_synthetic:=true markers:=true  # try-out
+    ros2 launch motion_style_ros stylizer.launch.py use_learned:=true learned_style:=elderly  # SAAE samples
     ros2 launch motion_style_ros stylizer.launch.py use_vmc:=true   # VMC in: config/vmc_bridge.yaml
     ros2 launch motion_style_ros stylizer.launch.py use_synthetic:=true use_rsp:=true  # RViz RobotModel
     ros2 launch motion_style_ros stylizer.launch.py managed:=true  # lifecycle node, brought to active
@@ -9,10 +11,11 @@
 Parameters come from ``params_file`` (default: the installed ``config/stylizer.yaml``); a
 stylizer argument given on the command line overrides its parameter, one left empty keeps the
 file's value. Every node starts in ``namespace``, so the topics are ``<namespace>/joint_states``
-in and ``<namespace>/stylized/...`` out, and the VMC bridge and the synthetic performer feed the
-stylizer and the bridge streams its output back out without remapping. With ``use_rsp``,
-robot_state_publisher turns ``stylized/joint_states`` into TF with ``robot_description_file``
-(default: the installed canonical skeleton's URDF, whose joints are the layout's names).
+in and ``<namespace>/stylized/...`` out, and the VMC bridge and the synthetic or learned performer
+(start one of them: they publish on the same topic) feed the stylizer and the bridge streams its
+output back out without remapping. With ``use_rsp``, robot_state_publisher turns
+``stylized/joint_states`` into TF with ``robot_description_file`` (default: the installed canonical
+skeleton's URDF, whose joints are the layout's names).
 """
 
 from pathlib import Path
@@ -27,6 +30,7 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import LifecycleNode, Node
 from launch_ros.event_handlers import OnStateTransition
 from launch_ros.events.lifecycle import ChangeState
+from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 from lifecycle_msgs.msg import Transition
 
@@ -116,6 +120,9 @@ def generate_launch_description():
             description='vmc_bridge parameters (OSC ports, avatar host)'),
         DeclareLaunchArgument('use_synthetic', default_value='false', choices=['true', 'false'],
                               description='also start synthetic_performer (a try-out without mocap)'),
+        DeclareLaunchArgument('use_learned', default_value='false', choices=['true', 'false'],
+                              description='also start learned_performer (new motion sampled from the '
+                                          'SAAE model, no mocap)'),
         DeclareLaunchArgument('use_rsp', default_value='false', choices=['true', 'false'],
                               description='also start robot_state_publisher on stylized/joint_states '
                                           '(TF for RViz\'s RobotModel display)'),
@@ -126,6 +133,9 @@ def generate_launch_description():
         DeclareLaunchArgument('synthetic_motion', default_value='walk',
                               choices=['walk', 'run', 'wave'],
                               description='what the synthetic performer performs'),
+        DeclareLaunchArgument('learned_style', default_value='',
+                              description='style the learned performer performs, one of its model '
+                                          'card\'s styles; empty: the model\'s neutral style'),
     ]
     vmc_bridge = Node(
         package=PACKAGE, executable='vmc_bridge', name='vmc_bridge',
@@ -139,5 +149,13 @@ def generate_launch_description():
         parameters=[{'motion': LaunchConfiguration('synthetic_motion')}],
         condition=IfCondition(LaunchConfiguration('use_synthetic')),
     )
+    learned = Node(
+        package=PACKAGE, executable='learned_performer', name='learned_performer',
+        namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
+        # a string even when empty (launch_ros reads a bare substitution as YAML, '' as null)
+        parameters=[{'style': ParameterValue(LaunchConfiguration('learned_style'), value_type=str)}],
+        condition=IfCondition(LaunchConfiguration('use_learned')),
+    )
     rsp = OpaqueFunction(function=_robot_state_publisher, condition=IfCondition(LaunchConfiguration('use_rsp')))
-    return LaunchDescription([*arguments, OpaqueFunction(function=_stylizer), vmc_bridge, performer, rsp])
+    return LaunchDescription([*arguments, OpaqueFunction(function=_stylizer), vmc_bridge, performer, learned,
+                              rsp])

@@ -36,6 +36,7 @@ SUBCOMMANDS = (
     "demo",      # built-in demo: synthetic performer -> stylizer -> outputs
     "data",      # dataset unpacking, indexing, inspection
     "stylize",   # restyle a BVH clip offline
+    "perform",   # sample new motion of a style from an SAAE into a BVH file
     "retarget",  # retarget motion between skeletons
     "description",  # the canonical skeleton as a URDF (RViz)
     "train",     # train models (torch)
