@@ -129,6 +129,15 @@ def test_the_stream_is_the_samplers_chunks_in_the_layout(model):
     assert np.abs(np.array([other.next_frame() for _ in range(40)]) - frames[:40]).max() > 1e-3
 
 
+def test_another_layout_carries_the_same_poses(model):
+    robot = JointStateLayout.from_yaml(ROOT / "config" / "layouts" / "example_robot.yaml")
+    stream = LearnedStream(model, "elderly", SEED, 1.0, FPS, robot)
+    frames = np.array([stream.next_frame() for _ in range(30)])
+    assert frames.shape == (30, len(robot.names)) and robot.names != LAYOUT.names
+    np.testing.assert_allclose(frames, robot.encode_motion(Sampler(model, "elderly", seed=SEED).chunk(0.5, FPS)),
+                               atol=1e-12)
+
+
 def test_live_values_are_checked_with_their_reason(model):
     stream = LearnedStream(model, "elderly", SEED)
     assert stream.problem("style", "active") is None and stream.problem("style", "") is None
