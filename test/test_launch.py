@@ -63,7 +63,7 @@ def test_launch_starts_console_scripts_of_the_package():
     tree = ast.parse(LAUNCH.read_text())
     setup = (ROOT / "setup.py").read_text()
     calls = node_calls(tree)
-    assert set(calls) == {"stylizer", "stylizer_managed", "vmc_bridge", "synthetic_performer"}
+    assert set(calls) == {"learned_performer", "stylizer", "stylizer_managed", "vmc_bridge", "synthetic_performer"}
     for executable, kwargs in calls.items():
         assert re.search(rf"'{executable} = motion_style_ros\.nodes\.{executable}:main'", setup)
         assert ast.literal_eval(kwargs["name"]) == executable.removesuffix("_managed")

@@ -125,6 +125,12 @@ def run(args: argparse.Namespace) -> int:
             raise MotionStyleError("--live streams one stylizer: give one --stylizer")
         return eval_live.run(args, names[0])
     if args.unseen:
+        if args.reference_codes:  # references: Bandai test takes of the target style
+            from motion_style_ros.evaluation.references import ReferenceStylizer
+
+            clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)
+            stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed)
+                         for name in names}
         return run_unseen(args, stylizers)
     if args.controls:
         return run_controls(args)
@@ -230,7 +236,7 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
     cards = {name: read_card(model_path(args.model or default_model(name))) for name in stylizers}
     # clips any of the models trained on (train --unlabelled) are not unseen: every model is
     # measured on the same others
-    trained = tuple(sorted({c for card in cards.values() for c in card["training"]["clips"].get("unlabelled", [])}))
+    trained = tuple(sorted({c for card in cards.values() for c in card["training"].get("clips", {}).get("unlabelled", [])}))
     clips = unseen.neutral_clips(leave_out=trained)
     if trained:
         print(f"left out {len(trained)} clips a model trained on: {', '.join(trained)}")
@@ -243,18 +249,27 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
         print(f"{name}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in reports[name]["summary"].items()))
         # Pictures: the input beside two contrasting styles, for a walk of each studio.
         for title, source in (clips[0], clips[-1]):
-            motions = [source, *(stylize(source, s) for s in ("elderly", "youthful"))]
-            titles = [title, f"{name}: elderly", f"{name}: youthful"]
+            motions, titles = [source], [title]
+            for style in ("elderly", "youthful"):
+                motions.append(stylize(source, style))
+                titles.append(f"{name}: {style}")
+                if getattr(stylize, "last_reference", None):  # the reference clip beside its output
+                    reference, motion = stylize.last_reference
+                    motions.insert(-1, motion)
+                    titles.insert(-1, f"reference {reference.removeprefix('dataset-2_')}")
             stem = out / f"unseen_{name}_{title.split()[1]}"
             render_png(motions, titles, stem.with_suffix(".png"))
             render_gif(motions, titles, stem.with_suffix(".gif"), seconds=6.0)
             print(f"wrote {stem}.png and {stem}.gif")
     path = out / "unseen.json"
-    settings = {"alpha": args.alpha, "judges": [j.model.path.name for j in judges], "left_out": list(trained)}
+    settings = {"alpha": args.alpha, "judges": [j.model.path.name for j in judges], "left_out": list(trained),
+                **({"references": f"Bandai dataset-{args.dataset} test takes of the target style"}
+                   if args.reference_codes else {})}
     path.write_text(json.dumps({"settings": settings, **reports}, indent=1) + "\n")
     print(f"wrote {path}")
     if args.record:
-        _record(args, "unseen", {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})
+        _record(args, "unseen_reference_codes" if args.reference_codes else "unseen",
+                {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})
     return 0
 
 

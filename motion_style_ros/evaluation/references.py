@@ -38,8 +38,9 @@ class ReferenceStylizer:
     """A reference-clip backend's session with each pair's style from a reference clip instead
     of the style's own input: a test take of the target style (not the source itself), of another
     content than the source's, or with ``same_content`` of the same content (chosen per pair with
-    the seed; at least a window long), read as the target style's. It only restyles the test clips
-    it was built with; :attr:`last_reference` names the take the last call used."""
+    the seed; at least a window long), read as the target style's. A source not among ``clips``
+    (an unseen clip) gets any of them in the target style. :attr:`last_reference` is the take the
+    last call used, as ``(name, motion)``."""
 
     def __init__(self, clips: list[Clip], backend: str = "stgcn", model: str | Path | None = None,
                  alpha: float = 1.0, threads: int = 1, seed: int = 0, same_content: bool = False) -> None:
@@ -54,28 +55,33 @@ class ReferenceStylizer:
         self._by_style: dict[str, list[tuple[str, Motion]]] = {}
         for info, m in sorted(clips, key=lambda c: c[0].name):
             self._by_style.setdefault(info.style, []).append((info, m))
-        self._session = made_by.session_class()(model or made_by.default_model, threads=threads,
-                                                **made_by.settings(PUBLISHED))
+        session = made_by.session_class()
+        settings = dict(threads=threads, **made_by.settings(PUBLISHED))
+        self._sessions = {None: session(model or made_by.default_model, **settings)}  # per input rate
+        self._make = lambda fps: session(model or made_by.default_model, input_fps=fps, **settings)
         self._alpha, self._seed, self.same_content = alpha, seed, same_content
-        self.last_reference: str | None = None
+        self.last_reference: tuple[str, Motion] | None = None
 
     def __call__(self, source: Motion, target_style: str) -> Motion:
         info = self._info.get(id(source))
-        if info is None:
-            raise MotionStyleError("the reference stylizer restyles only the test clips it was built with")
-        window_seconds = self._session.window / self._session.fps
+        if source.fps not in self._sessions:
+            self._sessions[source.fps] = self._make(source.fps)
+        session = self._sessions[source.fps]
+        window_seconds = session.window / session.fps
         candidates = [(ref, m) for ref, m in self._by_style.get(target_style, [])
-                      if m is not source and (ref.content == info.content) == self.same_content
-                      and m.n_frames / m.fps >= window_seconds]
+                      if m is not source and m.n_frames / m.fps >= window_seconds
+                      and (info is None or (ref.content == info.content) == self.same_content)]
         if not candidates:
-            which = "the same content as" if self.same_content else "another content than"
-            raise SkipPair(f"no test take in style {target_style} of {which} {info.content} with a "
-                           f"window's {self._session.window} frames")
-        rng = np.random.default_rng([self._seed, zlib.crc32(f"{info.name}>{target_style}".encode())])
+            which = "any content" if info is None else (
+                f"{'the same content as' if self.same_content else 'another content than'} {info.content}")
+            raise SkipPair(f"no test take in style {target_style} of {which} with a window's "
+                           f"{session.window} frames")
+        key = info.name if info is not None else f"unseen {source.n_frames} {source.positions[0, 0]}"
+        rng = np.random.default_rng([self._seed, zlib.crc32(f"{key}>{target_style}".encode())])
         ref, motion = candidates[int(rng.integers(len(candidates)))]
-        self._session.set_reference(motion, style=target_style)
-        self.last_reference = ref.name
-        return self._session.run(source, target_style, self._alpha)
+        session.set_reference(motion, style=target_style)
+        self.last_reference = (ref.name, motion)
+        return session.run(source, target_style, self._alpha)
 
 
 def local_pose(motion: Motion) -> np.ndarray:
