@@ -64,6 +64,12 @@ def test_a_clip_that_cannot_be_used_queues_a_revert_and_says_why(session, clip, 
     refs.load(str(broken), clip, {"reference": str(broken)}).join(60)
     assert list(refs.pending) == [{REVERT: clip}]
     assert len(errors) == 1 and "parameter reference:" in errors[0] and "keeping" in errors[0]
+    # without a clip before it, the log says what '' means: the node's wording for its backend
+    errors = []
+    refs = References(session, deque(), errors.append, "the styles' own inputs")
+    refs.load(str(broken), "", {"reference": str(broken)}).join(60)
+    assert list(refs.pending) == [{REVERT: ""}]
+    assert len(errors) == 1 and errors[0].endswith("keeping \"the styles' own inputs\""), errors
 
 
 def test_only_the_newest_clip_asked_for_is_applied(session, clip):

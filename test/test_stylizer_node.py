@@ -416,8 +416,8 @@ def test_bad_input_is_dropped_and_counted_and_the_next_good_frame_is_stylized(ri
 
 
 @pytest.mark.parametrize("params, expected", [
-    ({"backend": "lstm"}, "parameter backend is 'lstm'; allowed: recurrent, stgcn"),
-    ({"reference": "walk.bvh"}, "a reference clip needs backend stgcn"),
+    ({"backend": "lstm"}, "parameter backend is 'lstm'; allowed: recurrent, stgcn, most, saae"),
+    ({"reference": "walk.bvh"}, "a reference clip needs backend stgcn or most or saae (its style encoder)"),
     ({"target_style": "sad"}, "unknown style 'sad'; this model knows: active"),
     ({"qos_reliability": "sometimes"}, "allowed: best_effort, reliable"),
 ])

@@ -7,7 +7,7 @@ import yaml
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime import stylizer_settings as settings
-from motion_style_ros.runtime.backends import BACKENDS
+from motion_style_ros.runtime.backends import BACKENDS, with_feature
 from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.session import RecurrentSession
 
@@ -31,7 +31,7 @@ def test_the_sessions_settings_default_to_the_one_source():
 
 def test_start_values_that_do_not_go_together_say_what_is_allowed():
     assert settings.check_start(DEFAULT_VALUES) is BACKENDS["recurrent"]
-    for change, expected in [({"backend": "gan"}, "allowed: recurrent, stgcn"),
+    for change, expected in [({"backend": "gan"}, f"allowed: {', '.join(BACKENDS)}"),
                              ({"trajectory_velocities": "some"}, "allowed: inner, all, none"),
                              ({"style_bank": "bank.json"}, "needs backend stgcn"),
                              ({"performers": ["a", "a"]}, "distinct topic prefixes"),
@@ -41,13 +41,27 @@ def test_start_values_that_do_not_go_together_say_what_is_allowed():
 
 
 def test_a_live_change_is_checked_for_its_type_style_and_backend():
-    styles, recurrent, stgcn = ["normal", "elderly"], BACKENDS["recurrent"], BACKENDS["stgcn"]
+    styles, recurrent = ["normal", "elderly"], BACKENDS["recurrent"]
     assert settings.problem("alpha", 0.5, styles, recurrent) is None
     assert "must be of type double, got integer 1" in settings.problem("alpha", 1, styles, recurrent)
     assert "this model knows: normal, elderly" in settings.problem("target_style", "proud", styles, recurrent)
     assert settings.problem("mix_style", "", styles, recurrent) is None
-    assert "needs backend stgcn" in settings.problem("reference", "walk.bvh", styles, recurrent)
-    assert settings.problem("reference", "walk.bvh", styles, stgcn) is None
+    assert "needs backend stgcn or most or saae (its style encoder)" in settings.problem(
+        "reference", "walk.bvh", styles, recurrent)
+    for name in ("stgcn", "most", "saae"):
+        assert settings.problem("reference", "walk.bvh", styles, BACKENDS[name]) is None
+        assert settings.problem("latent_seed", 7, styles, BACKENDS[name]) is None  # (ignored without seeds)
+
+
+def test_a_backend_specific_parameter_names_the_backends_it_is_for():
+    described = {p.name: p.description for p in settings.PARAMETERS}
+    for name, feature in [("window", "lookahead"), ("hop", "lookahead"), ("lookahead", "lookahead"),
+                          ("style_bank", "style_bank"), ("latent_seed", "latent_seeds"),
+                          ("seed_spread", "latent_seeds"), ("reference", "reference_clips")]:
+        assert described[name].startswith(f"{', '.join(with_feature(feature))}: "), (name, described[name])
+    assert described["reference"].startswith("stgcn, most, saae: a BVH clip")
+    assert "recurrent, most, saae have no latent seeds and ignore it" in described["latent_seed"]
+    assert described["backend"] == f"stylizer backend: {', '.join(BACKENDS)}"
 
 
 def test_recurrent_sessions_run_their_model_frames_on_different_input_frames():

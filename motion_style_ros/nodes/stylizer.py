@@ -97,7 +97,8 @@ class StylizerBase(Parameters):
             p.stream = PerformerStream(p.input, s, self.layout, bounds, chunker(), p, self.get_logger(),
                                        robot, robot and chunker())
             self.performers.append(p)
-        self.references = References(session, self._pending, self.get_logger().error)
+        self.references = References(session, self._pending, self.get_logger().error,
+                                     "the latent seed" if spec.latent_seeds else "the styles' own inputs")
         self._reference = None  # the codes of the reference parameter's clip, once read
         if self.settings["reference"]:
             self.references.staged[self.settings["reference"]] = self.references.read(self.settings["reference"])

@@ -22,12 +22,15 @@ REVERT = "_revert_reference"  # the key of a queued revert: the clip (or '') to 
 
 
 class References:
-    """The reference clips of one node's sessions (``session``: any of them; they share the model)."""
+    """The reference clips of one node's sessions (``session``: any of them; they share the model);
+    ``empty``: what no clip ('') means for them, as the log says it."""
 
-    def __init__(self, session, pending: deque[dict], log_error: Callable[[str], None]) -> None:
+    def __init__(self, session, pending: deque[dict], log_error: Callable[[str], None],
+                 empty: str = "the latent seed") -> None:
         self.session = session
         self.pending = pending  # the node's queue of changes for the streams' thread, in order
         self.log_error = log_error
+        self.empty = empty
         self.staged: dict[str, tuple] = {}  # clip path -> its codes and logits, once read
         self._loads = 0  # loads started; a newer one makes an older one's result stale
 
@@ -57,7 +60,7 @@ class References:
             self.staged[path] = self.read(path)
         except MotionStyleError as exc:
             self.log_error(f"parameter reference: {' '.join(str(exc).split())}; keeping "
-                           f"{previous or 'the latent seed'!r}")
+                           f"{previous or self.empty!r}")
             self.pending.append({REVERT: previous})
             return
         if load == self._loads:  # else a newer clip was asked for meanwhile

@@ -38,6 +38,10 @@ class Parameter:
 
 
 _BOUNDS = Bounds()
+# the backends each backend-specific parameter is for (from the registry, so that a new entry is named)
+_WINDOWS, _SEEDS, _REFERENCES = (", ".join(with_feature(feature))
+                                  for feature in ("lookahead", "latent_seeds", "reference_clips"))
+_SEEDLESS = ", ".join(b for b in BACKENDS if not BACKENDS[b].latent_seeds)
 # Every parameter but target_style (its default is the model's neutral style) and the QoS ones
 # (nodes.Parameters.qos, as for every node of the package).
 PARAMETERS = (
@@ -46,11 +50,12 @@ PARAMETERS = (
     Parameter("model", "", "stylizer model: a shipped model's file name (models/) or a path, its JSON "
               "model card beside it; '' = the backend's shipped model"),
     Parameter("backend", "recurrent", f"stylizer backend: {', '.join(BACKENDS)}"),
-    Parameter("window", 0, "stgcn: frames per window, a multiple of 4; 0 = the model card's", 0, 1024),
+    Parameter("window", 0, f"{_WINDOWS}: frames per window (stgcn: a multiple of 4); 0 = the model card's",
+              0, 1024),
     Parameter("style_bank", "", "stgcn: a style bank file of enrolled styles (motion-style style add); "
               "'' = the model's own (<model>_styles.json) if there is one"),
-    Parameter("hop", DEFAULTS["hop"], "stgcn: model frames between two windows", 1, 1024),
-    Parameter("lookahead", DEFAULTS["lookahead"], "stgcn: model frames of the future each output frame "
+    Parameter("hop", DEFAULTS["hop"], f"{_WINDOWS}: model frames between two windows", 1, 1024),
+    Parameter("lookahead", DEFAULTS["lookahead"], f"{_WINDOWS}: model frames of the future each output frame "
               "waits for (latency lookahead / model fps); more is smoother", 0, 1023),
     Parameter("input_fps", 0.0, "nominal input rate in Hz (0: the model's rate); sets the output "
               "latency, 1/model_fps - 1/input_fps", 0.0, 1000.0),
@@ -83,13 +88,13 @@ PARAMETERS = (
     Parameter("mix_style", "", "a second style mixed in with mix_weight; '' = none"),
     Parameter("mix_weight", 0.0, "weight of mix_style: 0 = target_style alone, 1 = mix_style alone",
               0.0, 1.0),
-    Parameter("latent_seed", 0, "stgcn: seed of the style codes (the same seed, the same codes on every "
-              "machine); the recurrent backend has no latent space and ignores it", 0, 2**31 - 1),
-    Parameter("seed_spread", DEFAULTS["seed_spread"], "stgcn: how far the seeds' codes lie from their "
+    Parameter("latent_seed", 0, f"{_SEEDS}: seed of the style codes (the same seed, the same codes on every "
+              f"machine); {_SEEDLESS} have no latent seeds and ignore it", 0, 2**31 - 1),
+    Parameter("seed_spread", DEFAULTS["seed_spread"], f"{_SEEDS}: how far the seeds' codes lie from their "
               "style's mean code: 1 = as trained, 0 = one code per style, more = seeds differ more (the "
               "style less surely)", 0.0, MAX_SPREAD),
-    Parameter("reference", "", "stgcn: a BVH clip whose style code (style encoder) replaces the target "
-              "style's: move like this recording; '' = the latent seed's code"),
+    Parameter("reference", "", f"{_REFERENCES}: a BVH clip whose style code (style encoder) replaces the "
+              "target style's: move like this recording; '' = the style's own (stgcn: the latent seed's code)"),
     Parameter("frame_id", "", "header.frame_id of the outputs; '' = the input's (markers: 'world')"),
     Parameter("max_stamp_jump", _BOUNDS.max_stamp_jump, "s a frame's stamp may run ahead of the time "
               "since the previous frame arrived (and a first frame ahead of its arrival); more is "
