@@ -17,7 +17,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 from motion_style_ros.models.most import PARTS, MoST, Step, tiny
-from motion_style_ros.runtime.backends import PENDING
+from motion_style_ros.runtime.backends import BACKENDS
 from motion_style_ros.runtime.contract import MOST, check_card
 from motion_style_ros.runtime.most import MostSession
 from motion_style_ros.training import data as training_data
@@ -157,7 +157,7 @@ def test_training_reduces_reconstruction_resumes_identically_and_exports(data, c
 
 
 def test_the_registry_entry_makes_sessions_as_the_node_does(exported):
-    spec = PENDING["most"]
+    spec = BACKENDS["most"]
     assert spec.reference_clips and spec.lookahead and not spec.latent_seeds
     # the node's session settings for a windowed backend (runtime.stylizer_settings.sessions)
     common = {"input_fps": 120.0, "blend_seconds": 0.3, "threads": 1, "follow_seconds": 2.0,

@@ -139,10 +139,10 @@ def test_node_settings_set_and_drop_a_reference_on_a_backend_without_seeds(model
     """The node's apply (runtime.stylizer_settings) puts a reference's code over its style's input
     and, when the parameter is emptied, gives every style its own input back."""
     from motion_style_ros.runtime import stylizer_settings
-    from motion_style_ros.runtime.backends import PENDING
+    from motion_style_ros.runtime.backends import BACKENDS
     from motion_style_ros.runtime.defaults import DEFAULTS
 
-    spec = PENDING["saae"]
+    spec = BACKENDS["saae"]
     session = SaaeSession(models["model2"], input_fps=walk.fps, blend_seconds=0.0)
     own = session.style_inputs().copy()
     reference = session.reference_codes(walk)
@@ -160,9 +160,9 @@ def test_node_settings_set_and_drop_a_reference_on_a_backend_without_seeds(model
 
 
 def test_the_backend_entry_names_this_session():
-    from motion_style_ros.runtime.backends import PENDING
+    from motion_style_ros.runtime.backends import BACKENDS
 
-    spec = PENDING["saae"]
+    spec = BACKENDS["saae"]
     assert spec.session_class() is SaaeSession and spec.reference_clips and not spec.latent_seeds
     assert spec.settings({"hop": 4, "lookahead": 8, "seed_spread": 1.0}) == {"hop": 4, "lookahead": 8}
 

@@ -223,7 +223,7 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
     assert [r["seed_spread"] for r in rows] == [0.0, 2.0]
     assert rows[0]["between_seeds_m"] == 0.0 < rows[1]["between_seeds_m"]  # 0: one code per style
     assert rows[1]["between_seeds_m"] > spread["between_seeds_m"] and 0 <= rows[1]["style_accuracy"] <= 1
-    report, figures = windowed.bench_report(walk[:40], random_model, hops=(1, 8), lookahead=8)
+    report, figures = windowed.bench_report(walk[:40], "stgcn", random_model, hops=(1, 8), lookahead=8)
     assert "one window, 8 performer(s)" in report and "hop 8:" in report
     amortised = figures["per_frame_amortised_ms"]
     assert amortised["hop 8"] == pytest.approx(amortised["hop 1"] / 8, abs=1e-3)  # both rounded to 1 us

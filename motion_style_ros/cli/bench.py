@@ -34,25 +34,29 @@ def add_parser(subparsers):
     recurrent.add_argument("--record", action="store_true",
                            help="also write the figures into the model card's metrics")
     recurrent.set_defaults(func=run_recurrent)
-    stgcn = targets.add_parser(
-        "stgcn", help="the windowed ST-GCN session",
-        description="Time one ST-GCN window on ONNX Runtime (1 and 8 performers) and its per-frame "
-                    "amortised cost at each hop, then the wall time of WindowedSession.step() "
-                    "(the node's code path) streaming a clip at each hop.",
-    )
-    stgcn.add_argument("--clip", default=None, metavar="CLIP.bvh",
-                       help="humanoid BVH to stream (default: a 10 s synthetic walk at 30 Hz)")
-    stgcn.add_argument("--hops", default="1,4,8", metavar="N,N,...",
-                       help="hops (model frames between windows) to time (default: 1,4,8)")
-    stgcn.add_argument("--lookahead", type=int, default=DEFAULTS["lookahead"],
-                       help=f"model frames each output waits for (default: {DEFAULTS['lookahead']})")
-    stgcn.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
-    stgcn.add_argument("--record", action="store_true",
-                       help="also write the figures into the model card's metrics")
-    stgcn.add_argument("--model", default="stgcn.onnx",
-                       help="ONNX generator with its card and companions beside it (default: the "
-                            "shipped stgcn.onnx)")
-    stgcn.set_defaults(func=run_stgcn)
+    for spec in BACKENDS.values():
+        if not spec.lookahead:
+            continue
+        windows = targets.add_parser(
+            spec.name, help=f"the windowed {spec.name} session",
+            description=f"Time one window of the {spec.name} backend's step ({spec.summary}) on ONNX "
+                        "Runtime (1 and 8 performers) and its per-frame amortised cost at each hop, "
+                        "then the wall time of the session's step() (the node's code path) streaming "
+                        "a clip at each hop.",
+        )
+        windows.add_argument("--clip", default=None, metavar="CLIP.bvh",
+                             help="humanoid BVH to stream (default: a 10 s synthetic walk at 30 Hz)")
+        windows.add_argument("--hops", default="1,4,8", metavar="N,N,...",
+                             help="hops (model frames between windows) to time (default: 1,4,8)")
+        windows.add_argument("--lookahead", type=int, default=DEFAULTS["lookahead"],
+                             help=f"model frames each output waits for (default: {DEFAULTS['lookahead']})")
+        windows.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
+        windows.add_argument("--record", action="store_true",
+                             help="also write the figures into the model card's metrics")
+        windows.add_argument("--model", default=spec.default_model,
+                             help=f"the step's model with its card and companions beside it (default: the "
+                                  f"shipped {spec.default_model})")
+        windows.set_defaults(func=run_windows, backend=spec.name)
     nodes = targets.add_parser(
         "nodes", help="the stylizer node over DDS, end to end",
         description="Start the stylizer node as its own process (reliable QoS) and stream synthetic "
@@ -73,12 +77,12 @@ def add_parser(subparsers):
     nodes.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
                        help="the node's backend (default: recurrent)")
     nodes.add_argument("--lookahead", type=int, default=DEFAULTS["lookahead"],
-                       help=f"stgcn: model frames each output waits for (default: {DEFAULTS['lookahead']})")
+                       help=f"windowed backends: model frames each output waits for (default: {DEFAULTS['lookahead']})")
     nodes.add_argument("--pipelined", action="store_true",
                        help="the node's pipelined mode: each frame is published before the model "
                             "frames it does not need run (one input frame more latency)")
     nodes.add_argument("--reference", default=None, metavar="CLIP.bvh",
-                       help="stgcn: set the reference parameter to this clip and back every 2 s "
+                       help="stgcn, most, saae: set the reference parameter to this clip and back every 2 s "
                             "while streaming, and report the longest gap between two outputs of a "
                             "performer against the longest gap between two inputs (the clip is read "
                             "off the streams' thread)")
@@ -165,7 +169,7 @@ def run_recurrent(args) -> int:
     return 0
 
 
-def run_stgcn(args) -> int:
+def run_windows(args) -> int:
     import os
     import shlex
     import sys
@@ -181,7 +185,7 @@ def run_stgcn(args) -> int:
     except ValueError:
         raise MotionStyleError(f"--hops takes whole numbers separated by commas, got {args.hops!r}") from None
     clip = canonical_clip(args.clip) if args.clip else synthetic_motion("walk", 30.0, 10.0)
-    report, figures = bench_report(clip, args.model, hops, args.lookahead, args.threads)
+    report, figures = bench_report(clip, args.backend, args.model, hops, args.lookahead, args.threads)
     print(report)
     if args.record:
         figures = {"command": "motion-style " + shlex.join(sys.argv[1:]), "cpus": os.cpu_count(),

@@ -88,6 +88,19 @@ def add_parser(subparsers):
                    help="--live: only clips whose file names contain one of these (default: all)")
     p.add_argument("--no-proportions", action="store_true",
                    help="--live: skip the performer-size part")
+    p.add_argument("--performer", action="store_true",
+                   help="instead (saae): the learned performer, --performer-minutes of new motion per "
+                        "style against the Bandai test takes: seams, foot skating, both judges on "
+                        "4 s windows; writes performer.json and a picture (--record: as learned_performer)")
+    p.add_argument("--performer-minutes", type=float, default=10.0, metavar="M",
+                   help="--performer: minutes of stream per style (default: 10)")
+    p.add_argument("--generative", default=None, nargs="*", metavar="MODEL",
+                   help="instead: the SAAE paper's Table 1 (Parzen log-likelihood, G2T, T2G) for these "
+                        "SAAE model files (default: every saae_*.onnx shipped); --record writes each "
+                        "row into its model's card as generative")
+    p.add_argument("--no-foot-lock", action="store_true",
+                   help="stream without the package's foot locking (the node's foot_lock:=false; --record "
+                        "adds _no_foot_lock to the key), to measure what it adds to a backend")
     p.set_defaults(func=run)
 
 
@@ -116,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
                                "--live and --reference-codes use the Bandai data")
     # Build the stylizers first: a missing model fails here in one line, before the slow part.
     stylizers = {name: stylizer(name, args.model, args.alpha, args.threads, args.seed_spread,
-                                **backend(name).settings(harness.PUBLISHED))
+                                **backend(name).settings(harness.PUBLISHED), **_overrides(args))
                  for name in names}
     if args.live:
         from motion_style_ros.cli import eval_live
@@ -129,11 +142,16 @@ def run(args: argparse.Namespace) -> int:
             from motion_style_ros.evaluation.references import ReferenceStylizer
 
             clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)
-            stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed)
+            stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed,
+                                                 session=_overrides(args))
                          for name in names}
         return run_unseen(args, stylizers)
     if args.controls:
         return run_controls(args)
+    if args.performer:
+        return run_performer(args)
+    if args.generative is not None:
+        return run_generative(args)
     if args.enrol:
         return run_enrolment(args)
     judges, second = _judges(args)
@@ -142,13 +160,14 @@ def run(args: argparse.Namespace) -> int:
         from motion_style_ros.evaluation.references import ReferenceStylizer
 
         stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed,
-                                             args.same_content) for name in names}
+                                             args.same_content, _overrides(args)) for name in names}
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
     consistencies = _consistency(args, stylizers, clips, pairs) if args.consistency else None
     stylizers.update(harness.baselines(clips, args.seed))
     settings = {"pairs_per_cell": args.pairs_per_cell, "seed": args.seed, "alpha": args.alpha,
                 "dataset": args.data or args.dataset,
                 **({"data": f"the user's labelled BVH folder {args.data}, test takes"} if args.data else {}),
+                **({"foot_lock": False} if args.no_foot_lock else {}),
                 **({} if args.seed_spread is None else {"seed_spread": args.seed_spread})}
     if args.reference_codes:
         settings["references"] = (f"a test take of the target style and {'the same' if args.same_content else 'another'} "
@@ -173,6 +192,7 @@ def run(args: argparse.Namespace) -> int:
         key = ("eval_reference_codes" + ("_same_content" if args.same_content else "") if args.reference_codes
                else f"eval_seed_spread_{args.seed_spread:g}" if args.seed_spread is not None
                else "eval" if args.dataset == 2 or args.data else f"eval_dataset{args.dataset}")
+        key += "_no_foot_lock" if args.no_foot_lock else ""
         _record(args, key, {"settings": report["settings"], "systems": summary,
                             **({"consistency": report["consistency"]} if consistencies else {})})
     for name, system in report["systems"].items():
@@ -181,6 +201,11 @@ def run(args: argparse.Namespace) -> int:
                   f"(e.g. {system['skipped'][0]['reason']})")
     print(f"wrote {json_path} and {png_path}")
     return 0
+
+
+def _overrides(args: argparse.Namespace) -> dict:
+    """Session settings the flags change from the published ones."""
+    return {"foot_lock": False} if args.no_foot_lock else {}
 
 
 def _consistency(args: argparse.Namespace, stylizers: dict, clips: list, pairs: list) -> dict:
@@ -263,13 +288,15 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
             print(f"wrote {stem}.png and {stem}.gif")
     path = out / "unseen.json"
     settings = {"alpha": args.alpha, "judges": [j.model.path.name for j in judges], "left_out": list(trained),
+                **({"foot_lock": False} if args.no_foot_lock else {}),
                 **({"references": f"Bandai dataset-{args.dataset} test takes of the target style"}
                    if args.reference_codes else {})}
     path.write_text(json.dumps({"settings": settings, **reports}, indent=1) + "\n")
     print(f"wrote {path}")
     if args.record:
-        _record(args, "unseen_reference_codes" if args.reference_codes else "unseen",
-                {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})
+        key = ("unseen_reference_codes" if args.reference_codes else "unseen") + (
+            "_no_foot_lock" if args.no_foot_lock else "")
+        _record(args, key, {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})
     return 0
 
 
@@ -315,6 +342,79 @@ def run_controls(args: argparse.Namespace) -> int:
         for key, metrics in report.items():
             _record(args, key, metrics)
     return 0
+
+
+def run_performer(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.evaluation import harness, performer
+    from motion_style_ros.evaluation.judges import Judge
+    from motion_style_ros.io.render import render_png
+    from motion_style_ros.runtime.saae import Sampler
+
+    if args.stylizer != ["saae"]:
+        raise MotionStyleError("--performer measures the SAAE's learned performer: give --stylizer saae")
+    model = args.model or _shipped("saae")
+    real = [(info.style, m) for info, m in harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)]
+    judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
+    report = performer.evaluate(model, real, judges, args.performer_minutes, seed=args.seed,
+                                progress=not args.quiet)
+    print("learned performer: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report["summary"].items()))
+    for style, row in report["styles"].items():
+        print(f"  {style}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items()))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    sampler = Sampler(model, seed=args.seed)
+    shown = [s for s in ("elderly", "youthful", "exhausted") if s in sampler.styles] or sampler.styles[:3]
+    clips = []
+    for style in shown:
+        sampler.set_style(style)
+        sampler.restart()
+        clips.append(sampler.motion(6.0))
+    render_png(clips, [f"learned performer: {s}" for s in shown], out / "performer.png")
+    (out / "performer.json").write_text(json.dumps(report, indent=1) + "\n")
+    print(f"wrote {out / 'performer.json'} and {out / 'performer.png'}")
+    if args.record:
+        _record(args, "learned_performer", report)
+    return 0
+
+
+def run_generative(args: argparse.Namespace) -> int:
+    import json
+    import shlex
+    import sys
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.evaluation import generative
+    from motion_style_ros.runtime.onnx_model import model_path, models_dir, record_metrics
+
+    models = args.generative or sorted(str(p) for p in models_dir().glob("saae_*.onnx")
+                                       if p.with_suffix(".json").is_file())
+    if not models:
+        raise MotionStyleError("--generative found no SAAE model: train one (motion-style train saae) or name its file")
+    table = generative.table(models, seed=args.seed, threads=args.threads)
+    print(f"{'model':24s} {'Parzen LL':>12s} {'+-':>8s} {'G2T':>8s} {'T2G':>8s}")
+    for name, row in table.items():
+        print(f"{name:24s} {row['parzen_log_likelihood']:12.1f} {row['parzen_sem']:8.1f} {row['g2t']:8.3f} {row['t2g']:8.3f}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "generative.json").write_text(json.dumps(table, indent=1) + "\n")
+    print(f"wrote {out / 'generative.json'}")
+    if args.record:
+        command = "motion-style " + shlex.join(sys.argv[1:])
+        for model in models:
+            path = model_path(str(model))
+            print(f"recorded in {record_metrics(path, 'generative', {'command': command, **table[path.stem]})}")
+    return 0
+
+
+def _shipped(backend_name: str) -> str:
+    from motion_style_ros.runtime.offline import default_model
+
+    return default_model(backend_name)
 
 
 def run_enrolment(args: argparse.Namespace) -> int:

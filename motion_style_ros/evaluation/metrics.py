@@ -68,6 +68,16 @@ def jerk(motion: Motion) -> float:
     return float(np.linalg.norm(np.diff(p, n=3, axis=0), axis=-1).mean() * motion.fps**3)
 
 
+def joint_jumps(motion: Motion) -> np.ndarray:
+    """``(T - 1,)``: the largest distance (m) any joint moves between each two consecutive frames."""
+    return np.linalg.norm(np.diff(motion.global_positions(), axis=0), axis=-1).max(axis=-1)
+
+
+def largest_jump(motion: Motion) -> float:
+    """The largest distance (m) any joint moves between two consecutive frames."""
+    return float(joint_jumps(motion).max())
+
+
 def bone_length_error(motion: Motion, reference: Skeleton) -> float:
     """Mean absolute difference (m) between the motion's bone lengths, frame by frame, and the
     reference skeleton's rest lengths.

@@ -40,10 +40,12 @@ class ReferenceStylizer:
     content than the source's, or with ``same_content`` of the same content (chosen per pair with
     the seed; at least a window long), read as the target style's. A source not among ``clips``
     (an unseen clip) gets any of them in the target style. :attr:`last_reference` is the take the
-    last call used, as ``(name, motion)``."""
+    last call used, as ``(name, motion)``. ``session``: settings that replace the published ones
+    (:data:`~motion_style_ros.evaluation.harness.PUBLISHED`)."""
 
     def __init__(self, clips: list[Clip], backend: str = "stgcn", model: str | Path | None = None,
-                 alpha: float = 1.0, threads: int = 1, seed: int = 0, same_content: bool = False) -> None:
+                 alpha: float = 1.0, threads: int = 1, seed: int = 0, same_content: bool = False,
+                 session: dict | None = None) -> None:
         from motion_style_ros.runtime.backends import backend as spec
         from motion_style_ros.runtime.backends import with_feature
 
@@ -56,7 +58,7 @@ class ReferenceStylizer:
         for info, m in sorted(clips, key=lambda c: c[0].name):
             self._by_style.setdefault(info.style, []).append((info, m))
         session = made_by.session_class()
-        settings = dict(threads=threads, **made_by.settings(PUBLISHED))
+        settings = dict(threads=threads, **made_by.settings({**PUBLISHED, **(session or {})}))
         self._sessions = {None: session(model or made_by.default_model, **settings)}  # per input rate
         self._make = lambda fps: session(model or made_by.default_model, input_fps=fps, **settings)
         self._alpha, self._seed, self.same_content = alpha, seed, same_content

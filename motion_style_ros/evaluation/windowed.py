@@ -1,7 +1,7 @@
-"""How the windowed ST-GCN stylizer does on this machine and on real clips: what one window costs
-on ONNX Runtime and per frame at each hop, what each lookahead costs in quality (seams, style,
+"""How the windowed stylizers do on this machine and on real clips: what one window costs on ONNX
+Runtime and per frame at each hop (every windowed backend), what each lookahead costs in quality (seams, style,
 foot skating, distance from the most-context output), and how diverse its latent seeds are.
-``bench_report`` is what ``motion-style bench stgcn`` prints."""
+``bench_report`` is what ``motion-style bench stgcn`` (``most``, ``saae``) prints."""
 
 from __future__ import annotations
 
@@ -14,35 +14,36 @@ from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.evaluation.harness import PUBLISHED, Clip
 from motion_style_ros.evaluation.judges import Judge
-from motion_style_ros.evaluation.metrics import foot_skating
-from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
-from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession
+from motion_style_ros.evaluation.metrics import foot_skating, largest_jump
+from motion_style_ros.runtime import backends
+from motion_style_ros.runtime.onnx_model import model_path, read_card
+from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession, WindowsSession
 
 LOOKAHEADS = (0, 8, 16, 32)
 SPREADS = (1.0, 2.0, 2.5, 3.0)
 DIVERSITY_STYLES = ["elderly", "youthful", "exhausted"]  # styles the seeds' diversity is measured in
 
 
-def window_times(model: str | Path = DEFAULT_MODEL, performers: int = 1, repeats: int = 200,
+def window_times(backend: str, model: str | Path | None = None, performers: int = 1, repeats: int = 200,
                  threads: int = 1) -> np.ndarray:
-    """Wall time (ms) of each of ``repeats`` generator runs on one window of ``performers``."""
-    path = model_path(str(model))
-    card = read_card(path)
-    generator = OnnxModel(path, threads)
-    rng = np.random.default_rng(0)
-    features = rng.normal(size=(performers, int(card["window"]), card["feature_layout"]["contact"][1]))
-    code = rng.uniform(-1, 1, size=(performers, int(card["style_dim"])))
-    inputs = {"features": features.astype(np.float32), "code": code.astype(np.float32)}
-    generator.run(**inputs)  # warm-up
+    """Wall time (ms) of each of ``repeats`` runs of a windowed backend's step on one window of
+    ``performers`` (its model calls on the history, at the first style and alpha 1)."""
+    spec = backends.backend(backend)
+    session = spec.session_class()(model or spec.default_model, performers=performers, threads=threads)
+    step = session.windows
+    style = np.zeros((performers, len(session.styles)))
+    style[:, 0] = 1.0
+    alpha = np.ones((performers, 1))
+    step.run_window(style, alpha)  # warm-up
     times = []
     for _ in range(repeats):
         start = time.perf_counter_ns()
-        generator.run(**inputs)
+        step.run_window(style, alpha)
         times.append((time.perf_counter_ns() - start) / 1e6)
     return np.array(times)
 
 
-def step_times(session: WindowedSession, motion: Motion, style: str) -> np.ndarray:
+def step_times(session: WindowsSession, motion: Motion, style: str) -> np.ndarray:
     """Wall time (ms) of each ``step()`` call streaming ``motion`` (at its own rate) through
     ``session``, everything included (features, windows, overlap-add, decoding, foot locking)."""
     session.set_style(style)
@@ -54,11 +55,6 @@ def step_times(session: WindowedSession, motion: Motion, style: str) -> np.ndarr
         session.step(motion.rotations[t], roots[t], t / motion.fps)
         times.append((time.perf_counter_ns() - start) / 1e6)
     return np.array(times)
-
-
-def largest_jump(motion: Motion) -> float:
-    """Largest distance (m) any joint moves between two consecutive frames."""
-    return float(np.linalg.norm(np.diff(motion.global_positions(), axis=0), axis=-1).max())
 
 
 def _local(motion: Motion) -> np.ndarray:
@@ -172,19 +168,21 @@ def control_pairs(clips: list[Clip], seed: int = 0) -> list[tuple[Motion, str]]:
             for name in takes]
 
 
-def bench_report(motion: Motion, model: str | Path = DEFAULT_MODEL, hops: tuple[int, ...] = (1, 4, 8),
-                 lookahead: int = 8, threads: int = 1) -> tuple[str, dict]:
-    """What ``motion-style bench stgcn`` prints, and the figures in it: one window on ONNX Runtime
-    (1 and 8 performers) and the per-frame amortised cost at each hop, then the wall time of a
-    session's ``step()`` streaming ``motion`` (at its rate) at each hop with ``lookahead``."""
-    path = model_path(str(model))
+def bench_report(motion: Motion, backend: str = "stgcn", model: str | Path | None = None,
+                 hops: tuple[int, ...] = (1, 4, 8), lookahead: int = 8, threads: int = 1) -> tuple[str, dict]:
+    """What ``motion-style bench stgcn`` (or ``most``, ``saae``) prints, and the figures in it: one
+    window on ONNX Runtime (1 and 8 performers) and the per-frame amortised cost at each hop, then
+    the wall time of a session's ``step()`` streaming ``motion`` (at its rate) at each hop with
+    ``lookahead``."""
+    spec = backends.backend(backend)
+    path = model_path(str(model or spec.default_model))
     card = read_card(path)
     lines = [(f"model: {path} ({card['window']}-frame windows, {card['fps']:g} fps; trained on: "
              f"{card.get('training', {}).get('data', 'unknown data')}); ONNX Runtime on {threads} thread(s)")]
     figures: dict = {"lookahead": lookahead, "latency_ms": round(1000 * lookahead / card["fps"], 1),
                      "clip_frames": motion.n_frames, "clip_fps": motion.fps}
     for performers in (1, 8):
-        ms = window_times(path, performers, threads=threads)
+        ms = window_times(backend, path, performers, threads=threads)
         p50, p99 = np.percentile(ms, [50, 99])
         amortised = ", ".join(f"hop {h}: {p50 / h:.3f} ms" for h in hops)
         lines.append(f"one window, {performers} performer(s): p50 {p50:.2f} ms, p99 {p99:.2f} ms; "
@@ -196,7 +194,7 @@ def bench_report(motion: Motion, model: str | Path = DEFAULT_MODEL, hops: tuple[
                  f"lookahead {lookahead} ({figures['latency_ms']:.0f} ms):")
     figures["step_ms"] = {}
     for h in hops:
-        session = WindowedSession(path, hop=h, lookahead=lookahead, threads=threads, input_fps=motion.fps)
+        session = spec.session_class()(path, hop=h, lookahead=lookahead, threads=threads, input_fps=motion.fps)
         ms = step_times(session, motion, session.styles[0])
         p50, p99, worst = np.percentile(ms, [50, 99, 100])
         lines.append(f"  hop {h}: p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {worst:.2f} ms, mean {ms.mean():.2f} ms")

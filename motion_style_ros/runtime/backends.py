@@ -40,19 +40,13 @@ BACKENDS: dict[str, Backend] = {
     "stgcn": Backend("stgcn", "ST-GCN windows blended by overlap-add, latent seeds and reference clips",
                      "stgcn.onnx", "motion_style_ros.runtime.windowed:WindowedSession",
                      latent_seeds=True, reference_clips=True, style_bank=True, lookahead=True),
-}
-
-# Backends whose code is in but whose model is not trained and shipped yet. One moves into BACKENDS
-# with its model: every backend there has a shipped model and an offline stylizer
-# (test/test_backends.py), and the node, stylize, bench and eval offer it.
-PENDING: dict[str, Backend] = {
+    "most": Backend("most", "MoST (Kim et al. 2024): windows restyled like a reference clip of any action or a "
+                    "style's mean features, blended by overlap-add", "most.onnx",
+                    "motion_style_ros.runtime.most:MostSession", reference_clips=True, lookahead=True),
     "saae": Backend("saae", "sequence adversarial autoencoder (ESANN 2018): windows re-decoded with a style "
                     "label (Model1) or a reference clip's style code (Model2), blended by overlap-add",
                     "saae_model2_5d.onnx", "motion_style_ros.runtime.saae:SaaeSession",
                     reference_clips=True, lookahead=True),
-    "most": Backend("most", "MoST (Kim et al. 2024): windows restyled like a reference clip of any action or a "
-                    "style's mean features, blended by overlap-add", "most.onnx",
-                    "motion_style_ros.runtime.most:MostSession", reference_clips=True, lookahead=True),
 }
 
 

@@ -63,7 +63,7 @@ class MostStep(OverlapWindows):
         # [:, :, 0] the style features, [:, :, 1] the mean content ones
         self._start_codes(performers, blend_seconds, self.means)
 
-    def _run(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    def run_window(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         target = np.einsum("ps,pskcd->pkcd", style.astype(np.float64), self.current_codes())
         return self.model.run(features=self._history, style=target[:, 0].astype(np.float32),
                               pooled=target[:, 1].astype(np.float32),

@@ -32,7 +32,7 @@ from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.runtime.backends import BACKENDS, PENDING
+from motion_style_ros.runtime.backends import BACKENDS
 from motion_style_ros.runtime.contract import (
     SAAE_DECODER,
     SAAE_ENCODER,
@@ -43,7 +43,7 @@ from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.windowed import BanklessSession, OverlapWindows, latent
 
 # the paper's best (its Tables 1 and 2), Model2 with a 5-dim style code: 'motion-style train saae'
-DEFAULT_MODEL = {**PENDING, **BACKENDS}["saae"].default_model
+DEFAULT_MODEL = BACKENDS["saae"].default_model
 
 
 def _positions(frames: int, window: int, batch: int) -> np.ndarray:
@@ -97,7 +97,7 @@ class SaaeStep(OverlapWindows):
         own = self.style_encoder.run(features=self._history)["style_code"]
         return (own + alpha * (target - own)).astype(np.float32)
 
-    def _run(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    def run_window(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         """The window encoded to its content code and decoded with the style input; Model1's
         alpha blends the output from the input's frames."""
         code, features = self._code(style, alpha), self._history
@@ -119,6 +119,11 @@ class SaaeSession(BanklessSession):
     STEP = SaaeStep
     DEFAULT_MODEL = DEFAULT_MODEL
     NO_BANK = "the SAAE backend has no style bank (its styles are its training labels)"
+
+    @property
+    def model(self) -> OnnxModel:
+        """The decoder (the model file; the node names it in its log and diagnostics)."""
+        return self.windows.decoder
 
     @property
     def variant(self) -> str:

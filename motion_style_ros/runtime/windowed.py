@@ -94,7 +94,7 @@ class OverlapWindows:
     inputs (one per style) blended over ``blend_seconds``: the model step of every windowed backend.
     A subclass sets its sizes (:meth:`_sizes`) and layout (:meth:`_layout`) in ``__init__``, starts
     the style inputs in ``start`` (:meth:`_start_codes`) and runs its model on the window in
-    ``_history`` in :meth:`_run`; its output frame is ``lookahead`` model frames behind its input."""
+    ``_history`` in :meth:`run_window`; its output frame is ``lookahead`` model frames behind its input."""
 
     aligned = True
     WINDOW_LEAST = 4  # the fewest frames a window may have
@@ -131,7 +131,7 @@ class OverlapWindows:
         self._codes_from = self._codes_to.copy()
         self._code_progress = np.ones(performers)
 
-    def _run(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    def run_window(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         """The model's output ``(P, window, n_out)`` for the window in ``_history``, at the style
         weights ``style`` ``(P, S)`` and ``alpha`` ``(P, 1)``."""
         raise NotImplementedError
@@ -169,7 +169,7 @@ class OverlapWindows:
         due = np.maximum(n - lookahead, self._start)  # the frame each performer emits now
         slot = due - (n - lookahead)
         if n - self._last_window >= self.hop or not self._ola.covered(slot).all():
-            self._ola.add(self._run(style, alpha))
+            self._ola.add(self.run_window(style, alpha))
             self._last_window = n
         blocks = self._ola.frame(slot)
         # A performer's first frame is shown until its lookahead has come in, refined as windows
@@ -230,7 +230,7 @@ class WindowedStep(OverlapWindows):
         self._mean_codes = self._mapped(*MEAN_SEEDS).mean(axis=0)
         self._start_codes(performers, blend_seconds, self.seed_codes(self._seed))
 
-    def _run(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    def run_window(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         return self.model.run(features=self._history, code=self._code(style, alpha))["output"]
 
     # --- codes --------------------------------------------------------------------------------
