@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 import rclpy
 from builtin_interfaces.msg import Time
+from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
@@ -130,3 +132,22 @@ class Listener:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+
+
+def parameter_setter(listener, client, diagnostics, proc):
+    """``set_parameters(**values)`` for a stylizer node: set them through ``client`` (its
+    set_parameters service); once accepted, wait until the node's ``diagnostics`` (a subscription's
+    message list) report them in use (a reference clip is read on a worker thread and applied
+    after). Returns the results."""
+    def set_parameters(**values):
+        request = SetParameters.Request(
+            parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
+        results = listener.call(client, request, procs=[proc]).results
+        if all(r.successful for r in results):
+            diagnostics.clear()
+            listener.spin_until(lambda: any(
+                all({kv.key: kv.value for kv in st.values}.get(k) == str(v) for k, v in values.items())
+                for a in diagnostics for st in a.status), f"{values} in use", procs=[proc])
+        return results
+
+    return set_parameters

@@ -98,18 +98,7 @@ def node(backend, model, ros_env, tmp_path_factory):
             publisher.publish(message(stamp_ns, LAYOUT.names, positions))
         listener.spin_until(lambda: len(got) >= expected, f"{expected} stylized states", procs=[proc])
 
-    def set_parameters(**values):
-        """Set them; once accepted, wait until the node reports them in use (a reference clip is
-        read on a worker thread and applied after)."""
-        request = SetParameters.Request(
-            parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
-        results = listener.call(client, request, procs=[proc]).results
-        if all(r.successful for r in results):
-            diagnostics.clear()
-            listener.spin_until(lambda: any(
-                all({kv.key: kv.value for kv in st.values}.get(k) == str(v) for k, v in values.items())
-                for a in diagnostics for st in a.status), f"{values} in use", procs=[proc])
-        return results
+    set_parameters = ros_helpers.parameter_setter(listener, client, diagnostics, proc)
 
     def parameter(name):
         return listener.call(getter, GetParameters.Request(names=[name]), procs=[proc]).values[0]

@@ -65,18 +65,7 @@ def node(model, ros_env, tmp_path_factory):
 
     diagnostics = listener.subscribe("/diagnostics", DiagnosticArray, RELIABLE)
 
-    def set_parameters(**values):
-        """Set them; once accepted, wait until the node reports them in use (a reference clip is
-        read on a worker thread and applied after)."""
-        request = SetParameters.Request(
-            parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
-        results = listener.call(client, request, procs=[proc]).results
-        if all(r.successful for r in results):
-            diagnostics.clear()
-            listener.spin_until(lambda: any(
-                all({kv.key: kv.value for kv in st.values}.get(k) == str(v) for k, v in values.items())
-                for a in diagnostics for st in a.status), f"{values} in use", procs=[proc])
-        return results
+    set_parameters = ros_helpers.parameter_setter(listener, client, diagnostics, proc)
 
     set_parameters.raw = lambda request: listener.call(client, request, procs=[proc]).results
     set_parameters.diagnostics, set_parameters.listener = diagnostics, listener
