@@ -79,6 +79,7 @@ def test_apply_hands_each_change_to_every_session():
     walk = synthetic_motion("walk", 30.0, 1.0)
     made = settings.sessions(BACKENDS["recurrent"], "style_erd.onnx", 2, DEFAULT_VALUES)
     current = {k: DEFAULT_VALUES.get(k, "normal") for k in settings.DYNAMIC}
+    settings.apply(made, BACKENDS["recurrent"], current, current, None)  # the node's start: every value
     settings.apply(made, BACKENDS["recurrent"], current, {"target_style": "elderly", "alpha": 0.25}, None)
     by_hand = settings.sessions(BACKENDS["recurrent"], "style_erd.onnx", 1, DEFAULT_VALUES)[0]
     by_hand.set_style("elderly")

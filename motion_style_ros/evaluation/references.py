@@ -57,10 +57,10 @@ class ReferenceStylizer:
         self._by_style: dict[str, list[tuple[str, Motion]]] = {}
         for info, m in sorted(clips, key=lambda c: c[0].name):
             self._by_style.setdefault(info.style, []).append((info, m))
-        session = made_by.session_class()
         settings = dict(threads=threads, **made_by.settings({**PUBLISHED, **(session or {})}))
-        self._sessions = {None: session(model or made_by.default_model, **settings)}  # per input rate
-        self._make = lambda fps: session(model or made_by.default_model, input_fps=fps, **settings)
+        made = made_by.session_class()
+        self._sessions = {None: made(model or made_by.default_model, **settings)}  # per input rate
+        self._make = lambda fps: made(model or made_by.default_model, input_fps=fps, **settings)
         self._alpha, self._seed, self.same_content = alpha, seed, same_content
         self.last_reference: tuple[str, Motion] | None = None
 

@@ -194,7 +194,7 @@ def apply(sessions_: list, spec: Backend, settings: dict, changes: dict, referen
         dropped = "reference" in changes and not settings["reference"]
         if spec.latent_seeds and ({"latent_seed", "seed_spread"} & changes.keys() or dropped):
             session.set_seed(settings["latent_seed"], spread=settings["seed_spread"])
-        elif not spec.latent_seeds and (dropped or reference is not None):
+        elif spec.reference_clips and not spec.latent_seeds and (dropped or reference is not None):
             session.clear_reference()  # the styles' own inputs, a new reference's over its style
         if reference is not None:
             session.use_reference(*reference, settings["target_style"])
