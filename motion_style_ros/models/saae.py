@@ -23,10 +23,9 @@ Sizes (:class:`SaaeConfig` defaults) and why. The paper gives none but its windo
 ST-GCN backend's window, so both stream with the same hop and lookahead), frames are 260 features
 in and 130 out. A GRU of 256 units each way in the encoder and one of 256 in the decoder with a
 32-dim content code come to 1.1 M parameters; the critics are small MLPs (128 wide). At batch 32
-with 2 threads this trained at 0.7-1.0 iterations a second on this machine's 2 cores while another
-training held them (the SAAE at nice 19; the idle rate is not measured; the ST-GCN trainer's is 1.5
-it/s at batch 8): 5-7 k iterations, some 2 x 10^5 windows, in two hours under that load, more on an
-idle machine (the paper saw 8 x 10^4 windows per epoch). GRUs rather than LSTMs: a third fewer
+on one torch thread pinned to one core (the MoST run held the other) this trains at 4.9 iterations
+a second: the shipped Model2 made 29,553 iterations, some 9.5 x 10^5 windows, in 100 minutes (the
+paper saw 8 x 10^4 windows per epoch). GRUs rather than LSTMs: a third fewer
 weights for the same width, and the trainer's time goes into the recurrences.
 """
 

@@ -21,10 +21,9 @@ velocities, root block):
 The weight average of the model (encoder, modulator, generator) is exported, with every style's
 mean style features over train windows for ``target_style``.
 
-Speed, measured while another training run held a core (2-core machine, 1 torch thread, default
-config, Bandai dataset-2): 1.26 iterations/s over a 3-minute smoke run (227 iterations; the
-reconstruction term fell from 4.5 to 0.8), so 100 minutes make about 7,500 iterations. Two torch
-threads on a busy machine were far slower (one iteration a minute: every operation waits for the
+Speed: on one torch thread pinned to one core while the SAAE run held the other (2-core machine,
+default config, Bandai dataset-2), 2.0 iterations/s: the shipped model made 11,990 iterations in
+100 minutes. Two torch threads on a busy machine are far slower (every operation waits for the
 second thread); on an idle one, take two.
 """
 
