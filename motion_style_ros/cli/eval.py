@@ -352,11 +352,12 @@ def run_performer(args: argparse.Namespace) -> int:
     from motion_style_ros.evaluation import harness, performer
     from motion_style_ros.evaluation.judges import Judge
     from motion_style_ros.io.render import render_png
+    from motion_style_ros.runtime.offline import default_model
     from motion_style_ros.runtime.saae import Sampler
 
     if args.stylizer != ["saae"]:
         raise MotionStyleError("--performer measures the SAAE's learned performer: give --stylizer saae")
-    model = args.model or _shipped("saae")
+    model = args.model or default_model("saae")
     real = [(info.style, m) for info, m in harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)]
     judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
     report = performer.evaluate(model, real, judges, args.performer_minutes, seed=args.seed,
@@ -409,12 +410,6 @@ def run_generative(args: argparse.Namespace) -> int:
             path = model_path(str(model))
             print(f"recorded in {record_metrics(path, 'generative', {'command': command, **table[path.stem]})}")
     return 0
-
-
-def _shipped(backend_name: str) -> str:
-    from motion_style_ros.runtime.offline import default_model
-
-    return default_model(backend_name)
 
 
 def run_enrolment(args: argparse.Namespace) -> int:

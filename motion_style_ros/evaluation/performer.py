@@ -43,18 +43,21 @@ def evaluate(model: str | Path, real: list[tuple[str, Motion]], judges: list[Jud
         sampler.set_style(style)
         sampler.restart()
         stream = sampler.motion(60.0 * minutes)
+        jumps = joint_jumps(stream)  # one FK of the whole stream
         skating = [metrics.foot_skating(m) for s, m in real if s == style]
         judged = [j.judge(windows(stream)) for j in judges]
         rows[style] = {
             "frames": stream.n_frames,
-            "finite": bool(np.isfinite(stream.global_positions()).all()),
-            "largest_jump_m": largest_jump(stream),
-            "seams_over_real": int((joint_jumps(stream) > real_jump).sum()),
+            "finite": bool(np.isfinite(jumps).all()),
+            "largest_jump_m": float(jumps.max()),
+            "seams_over_real": int((jumps > real_jump).sum()),
             "foot_skating": metrics.foot_skating(stream),
             "foot_skating_real_median": float(np.median(skating)) if skating else None,
             **{f"recognised_{k}": float(np.mean([label == style for label in j.labels]))
                for k, j in enumerate(judged, start=1)},
         }
+    ratios = [r["foot_skating"] / r["foot_skating_real_median"] for r in rows.values()
+              if r["foot_skating_real_median"]]
     overall = {
         "minutes_per_style": minutes,
         "window_seconds": WINDOW_SECONDS,
@@ -64,8 +67,6 @@ def evaluate(model: str | Path, real: list[tuple[str, Motion]], judges: list[Jud
         "all_finite": all(r["finite"] for r in rows.values()),
         **{f"recognised_{k}": float(np.mean([r[f"recognised_{k}"] for r in rows.values()]))
            for k in range(1, len(judges) + 1)},
-        "foot_skating_ratio_median": float(np.median([
-            r["foot_skating"] / r["foot_skating_real_median"] for r in rows.values()
-            if r["foot_skating_real_median"]])) if any(r["foot_skating_real_median"] for r in rows.values()) else None,
+        "foot_skating_ratio_median": float(np.median(ratios)) if ratios else None,
     }
     return {"summary": overall, "styles": rows}

@@ -19,13 +19,10 @@ from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.runtime.saae import DEFAULT_MODEL, Sampler
+from motion_style_ros.runtime.stylizer_settings import wrong_type
 
 CHUNK_SECONDS = 0.25  # a style change shows in the windows drawn after at most this much
-# Parameters that change live, with their types (checked by the node: rclpy's own message would
-# name the types by number).
-DYNAMIC = {"style": str, "frame_id": str}
-TYPE_NAMES = {str: "string", float: "double", int: "integer", bool: "bool", list: "array",
-              type(None): "nothing (not set)"}
+DYNAMIC = {"style": str, "frame_id": str}  # parameters that change live, with their types
 MAX_SEED = 2**31 - 1
 
 
@@ -57,10 +54,8 @@ class LearnedStream:
 
     def problem(self, key: str, value) -> str | None:
         """Why ``value`` is no value for the live parameter ``key``, or None."""
-        want = DYNAMIC[key]
-        if type(value) is not want:
-            got = TYPE_NAMES.get(type(value), type(value).__name__)
-            return f"{key} must be of type {TYPE_NAMES[want]}, got {got} {value!r}"
+        if reason := wrong_type(key, value, DYNAMIC[key]):
+            return reason
         if key == "style" and value and value not in self.styles:
             return (f"unknown style {value!r}; this model knows: {', '.join(self.styles)} "
                     f"('' = {self.neutral})")

@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-
 if TYPE_CHECKING:  # the CLI imports this module to build its parser: keep it light
     from motion_style_ros.core.motion import Motion
 

@@ -161,13 +161,20 @@ def sessions(spec: Backend, model: str, count: int, values: dict) -> list:
                       for k in range(1, count)]
 
 
+def wrong_type(key: str, value, want: type) -> str | None:
+    """Why ``value`` of the live parameter ``key`` is not of type ``want``, with ROS's type names
+    (rclpy's own message would name them by number), or None."""
+    if type(value) is want:
+        return None
+    got = TYPE_NAMES.get(type(value), type(value).__name__)
+    return f"{key} must be of type {TYPE_NAMES[want]}, got {got} {value!r}"
+
+
 def problem(key: str, value, styles: list[str], spec: Backend) -> str | None:
     """Why ``value`` is no value for the live parameter ``key``, or None. (Ranges are checked by the
     descriptors before the callback runs.)"""
-    want = DYNAMIC[key]
-    if type(value) is not want:
-        got = TYPE_NAMES.get(type(value), type(value).__name__)
-        return f"{key} must be of type {TYPE_NAMES[want]}, got {got} {value!r}"
+    if reason := wrong_type(key, value, DYNAMIC[key]):
+        return reason
     if key in ("target_style", "mix_style") and value not in styles and not (
             key == "mix_style" and value == ""):
         return (f"unknown style {value!r}; this model knows: {', '.join(styles)}"
