@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.foot_lock import FootLock
-from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.foot_lock import FootLock, OwnContact
+from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
 from motion_style_ros.evaluation import metrics
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 
@@ -32,11 +32,11 @@ def locked(motion: Motion, lock: FootLock, source: Motion | None = None) -> Moti
     return Motion.from_rotations(motion.skeleton, np.concatenate(out_q), np.concatenate(out_p), motion.fps)
 
 
-def sliding(motion: Motion) -> Motion:
-    """The walk with its root pushed 30 % further along its path: every planted foot slides."""
+def sliding(motion: Motion, push: float = 0.3) -> Motion:
+    """The walk with its root pushed ``push`` (30 %) further along its path: every planted foot slides."""
     roots = motion.positions[:, motion.skeleton.pelvis].copy()
     step = np.diff(roots[:, [0, 2]], axis=0, prepend=roots[:1, [0, 2]])
-    roots[:, [0, 2]] += 0.3 * np.cumsum(step, axis=0)
+    roots[:, [0, 2]] += push * np.cumsum(step, axis=0)
     return Motion.from_rotations(motion.skeleton, motion.rotations, roots, motion.fps)
 
 
@@ -57,6 +57,42 @@ def test_locking_cuts_foot_skating_and_leaves_the_rest_alone(walk):
     def largest_step(m):
         return np.degrees(rot.angle_between(m.rotations[1:, legs], m.rotations[:-1, legs])).max()
     assert largest_step(fixed) < 1.6 * largest_step(walk)
+
+
+def test_own_contact_plants_a_low_ankle_where_it_came_down():
+    own = OwnContact(1, 30.0, speed=np.inf)
+    low, high = np.array([[[0.0, 0.05, 0.0], [0.3, 0.5, 0.0]]]), np.array([[[0.0, 0.5, 0.0], [0.3, 0.5, 0.0]]])
+    assert np.array_equal(own(low), low)
+    slid = low + [[[0.2, 0.0, 0.1], [0.0, 0.0, 0.0]]]
+    assert np.array_equal(own(slid)[0, 0], low[0, 0])  # still down: held where it came down
+    assert np.array_equal(own(high), high)  # lifted: as it is
+    assert np.array_equal(own(slid)[0, 0], slid[0, 0])  # down again: planted anew
+    # with a speed limit, a foot skimming the floor fast is not planted
+    fast = OwnContact(1, 30.0)
+    fast(low)
+    assert np.array_equal(fast(slid), slid)
+
+
+def test_a_stream_with_no_input_holds_its_own_planted_feet(walk):
+    """A generated stream (the learned performer's) has no input: its own low, slow feet are held."""
+    slid, sk = sliding(walk, 0.1), walk.skeleton
+    lock, own = FootLock(1, walk.fps, max_stretch=0.3), OwnContact(1, walk.fps)
+    roots = slid.positions[:, sk.pelvis]
+    moved, out_q, out_p = np.zeros(3), [], []
+    for t in range(slid.n_frames):
+        q, p = slid.rotations[t:t + 1], roots[t:t + 1] + moved
+        _, g = forward_kinematics(sk, q, rest_positions(sk, p), joints=[])
+        q, p = lock(q, p, own(g[:, lock.ankles]))
+        moved = p[0] - roots[t]
+        out_q.append(q)
+        out_p.append(p)
+    fixed = Motion.from_rotations(sk, np.concatenate(out_q), np.concatenate(out_p), walk.fps)
+    before, after = metrics.foot_skating(slid), metrics.foot_skating(fixed)
+    assert after < 0.6 * before, (before, after)
+    assert metrics.largest_jump(fixed) < 1.2 * metrics.largest_jump(walk)  # no pops
+    # the held-back root covers less ground than the sliding one, about what the walk's legs cover
+    travel = np.linalg.norm(fixed.positions[-1, sk.pelvis, [0, 2]] - fixed.positions[0, sk.pelvis, [0, 2]])
+    assert travel < np.linalg.norm(roots[-1, [0, 2]] - roots[0, [0, 2]])
 
 
 def test_a_clean_walk_is_barely_changed(walk):

@@ -11,7 +11,7 @@ torch = pytest.importorskip("torch", reason="tests the torch networks: pip insta
 ort = pytest.importorskip("onnxruntime")
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.evaluation import generative
+from motion_style_ros.evaluation import generative, metrics
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 from motion_style_ros.models.saae import (
     Critic,
@@ -206,6 +206,18 @@ def test_the_samplers_joins_are_no_seams(models):
     assert whole.n_frames == 60 and np.abs(joined - whole.rotations).max() < 1e-9
     model_rate = Sampler(models["model2"], "elderly", seed=3).poses(30)[0]
     assert np.abs(np.abs((whole.rotations[::2] * model_rate).sum(-1)) - 1).max() < 1e-9
+
+
+def test_the_samplers_feet_are_locked_and_nothing_else_changes(models):
+    locked = Sampler(models["model2"], "elderly", seed=3).motion(4.0)
+    free = Sampler(models["model2"], "elderly", seed=3, foot_lock=False).motion(4.0)
+    sk = locked.skeleton
+    legs = [sk.index(f"{part}_{side}") for part in ("UpperLeg", "LowerLeg", "Foot") for side in "LR"]
+    others = [j for j in range(sk.n_joints) if j not in legs]
+    assert np.array_equal(locked.rotations[:, others], free.rotations[:, others])
+    assert np.array_equal(locked.positions[:, sk.pelvis, 1], free.positions[:, sk.pelvis, 1])
+    assert metrics.foot_skating(locked) <= metrics.foot_skating(free)
+    assert metrics.largest_jump(locked) <= 1.5 * metrics.largest_jump(free)
 
 
 def test_the_papers_measures_of_prior_windows_against_real_ones(models, data):

@@ -17,8 +17,11 @@ def add_parser(subparsers):
                    help="the SAAE: a shipped model's file name or a path (default: the saae backend's "
                         "shipped model)")
     p.add_argument("--seed", type=int, default=0, metavar="N", help="seed of the prior samples (default 0)")
-    p.add_argument("--spread", type=float, default=1.0, metavar="X",
-                   help="how far the style inputs lie from their style's mean, 0..4 (default 1: as trained)")
+    p.add_argument("--spread", type=float, default=None, metavar="X",
+                   help="how far the style inputs lie from their style's mean in its stds, 0..4 (default: "
+                        "the node's, each style's mean; 1: as trained)")
+    p.add_argument("--no-foot-lock", action="store_true",
+                   help="leave the sampled feet as the model gives them (the node's foot_lock:=false)")
     p.add_argument("--fps", type=float, default=60.0, metavar="F", help="frame rate of the clip (default 60)")
     p.set_defaults(func=run)
 
@@ -30,7 +33,8 @@ def run(args) -> int:
 
     if not args.style:
         raise MotionStyleError("--style is empty; give one of the model card's styles")
-    stream = LearnedStream(args.model, args.style, args.seed, args.spread, args.fps)
+    spread = {} if args.spread is None else {"spread": args.spread}
+    stream = LearnedStream(args.model, args.style, args.seed, fps=args.fps, foot_lock=not args.no_foot_lock, **spread)
     motion = stream.motion(args.seconds)
     bvh.write(args.out, bvh.BvhClip.from_motion(motion, scale=100.0), precision=6)
     print(f"wrote {args.out}: {motion.n_frames} frames at {motion.fps:g} fps, style {stream.style} sampled "

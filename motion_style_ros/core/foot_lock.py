@@ -45,6 +45,7 @@ GLIDE = 0.5  # a new lock follows this much of the stylizer's ankle motion, then
 _NEAR = 1e-6  # m: a goal this close to the ankle leaves the leg as it is
 ANCHOR_EASE = 0.3  # the fraction of the way to the wanted hold-back the root goes each frame
 DOWN = 0.08  # m: a stylized ankle this far above the contact height is still down (on its toes)
+PLANTED_SPEED = 0.3  # m/s: an ankle below its contact height and slower than this is planted
 _SIDES = np.tile([0, 1], 3)  # the leg (left, right) of each joint of the chain: hips, knees, ankles
 
 
@@ -58,7 +59,7 @@ class FootLock:
 
     def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None,
                  release_seconds: float = 0.4, max_stretch: float = 0.1,
-                 speed: float = 0.3, clearance: bool = True, anchor_root: bool = True,
+                 speed: float = PLANTED_SPEED, clearance: bool = True, anchor_root: bool = True,
                  anchor_stretch: float = 0.02) -> None:
         self.skeleton = sk = skeleton or canonical()
         self.fps = float(fps)
@@ -206,6 +207,32 @@ class FootLock:
         ankle = knee + rot.rotate(bend, v)
         swing = rot.between(ankle - hip, goal - hip)
         return rot.multiply(swing, g_upper), rot.multiply(swing, rot.multiply(bend, g_lower))
+
+
+class OwnContact:
+    """Input ankles for :class:`FootLock` on a stream that has no input (a generated one): an
+    ankle of the stream itself below its contact height and slower than ``speed`` (m/s,
+    horizontal; a foot that slides faster is taken for a low step) is planted where it came down, and the planted position is what the lock is given
+    as the input's ankle; any other ankle is given as it is. The lock then holds planted feet
+    still and, where the stream's root runs ahead of them, holds the root back."""
+
+    def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None,
+                 speed: float = PLANTED_SPEED) -> None:
+        sk = skeleton or canonical()
+        self._height = np.array([CONTACT_HEIGHT[sk.names[sk.index(leg[2])]] for leg in LEGS])
+        self._fps, self.speed = float(fps), speed
+        self._last = np.full((performers, 2, 3), np.nan)  # the ankles of the last frame
+        self._landed = np.full((performers, 2, 3), np.nan)  # where a planted ankle came down
+
+    def __call__(self, ankles: np.ndarray) -> np.ndarray:
+        """``(P, 2, 3)``: the lock's input ankles for this frame's own ankles ``(P, 2, 3)``."""
+        step = ankles - self._last
+        speed = np.hypot(step[..., 0], step[..., 2]) * self._fps  # NaN on the first frame
+        down = (ankles[..., 1] < self._height) & ~(speed >= self.speed)
+        self._last = ankles
+        self._landed = np.where((down & np.isnan(self._landed[..., 0]))[..., None], ankles, self._landed)
+        self._landed[~down] = np.nan
+        return np.where(down[..., None], self._landed, ankles)
 
 
 def _unit_clip(x: np.ndarray) -> np.ndarray:

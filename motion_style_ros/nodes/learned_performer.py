@@ -20,7 +20,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.nodes import PlayerNode, joint_state, run
 from motion_style_ros.runtime import learned_performer as learned
-from motion_style_ros.runtime.saae import DEFAULT_MODEL
+from motion_style_ros.runtime.saae import DEFAULT_MODEL, SPREAD
 from motion_style_ros.runtime.windowed import MAX_SPREAD
 
 NAME = "learned_performer"
@@ -38,14 +38,16 @@ class LearnedPerformer(PlayerNode):
                            "model's neutral style (changes live, blending in)", read_only=False)
         seed = self.param("seed", 0, "seed of the prior samples: the same seed, the same motion",
                           0, learned.MAX_SEED)
-        spread = self.param("spread", 1.0, "how far each window's style input lies from its style's "
-                            "mean: 0 = the mean, 1 = as trained", 0.0, MAX_SPREAD)
+        spread = self.param("spread", SPREAD, "how far each window's style input lies from its style's "
+                            "mean, in its stds: 0 = the mean (clearest style), 1 = as trained", 0.0, MAX_SPREAD)
+        foot_lock = self.param("foot_lock", True, "hold the feet the stream brings down where they land "
+                               "(and its root back where it runs ahead of them)")
         self.fps = self.param("fps", 60, "frames per second", 1, 1000)
         topic = self.param("topic", "joint_states", "JointState topic to publish on")
         self.frame_id = self.param("frame_id", "", "header.frame_id of the messages", read_only=False)
         layout = self.param("layout", "", "JointState layout YAML (config/layouts/); empty: canonical")
         layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
-        stream = learned.LearnedStream(model, style, seed, spread, self.fps, layout)  # checks the style
+        stream = learned.LearnedStream(model, style, seed, spread, self.fps, layout, foot_lock=foot_lock)  # checks the style
         if reason := stream.problem("frame_id", self.frame_id):  # dynamically typed: checked here
             raise MotionStyleError(f"parameter frame_id: {reason}")
         self.stream = stream

@@ -18,7 +18,7 @@ import numpy as np
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import JointStateLayout
-from motion_style_ros.runtime.saae import DEFAULT_MODEL, Sampler
+from motion_style_ros.runtime.saae import DEFAULT_MODEL, SPREAD, Sampler
 from motion_style_ros.runtime.stylizer_settings import wrong_type
 
 CHUNK_SECONDS = 0.25  # a style change shows in the windows drawn after at most this much
@@ -31,13 +31,15 @@ class LearnedStream:
     registry's saae model) at ``fps``, as ``layout`` vectors (canonical: root translation and
     rotation, then every bone's local rotation). ``style`` '' is the model's neutral style."""
 
-    def __init__(self, model: str | Path = DEFAULT_MODEL, style: str = "", seed: int = 0, spread: float = 1.0,
-                 fps: float = 60.0, layout: JointStateLayout | None = None, threads: int = 1) -> None:
+    def __init__(self, model: str | Path = DEFAULT_MODEL, style: str = "", seed: int = 0, spread: float = SPREAD,
+                 fps: float = 60.0, layout: JointStateLayout | None = None, threads: int = 1,
+                 foot_lock: bool = True) -> None:
         if not (isinstance(fps, (int, float)) and not isinstance(fps, bool) and fps > 0):
             raise MotionStyleError(f"fps must be a positive number, got {fps!r}")
         if not (isinstance(seed, int) and not isinstance(seed, bool) and 0 <= seed <= MAX_SEED):
             raise MotionStyleError(f"seed must be a whole number from 0 to {MAX_SEED}, got {seed!r}")
-        self.sampler = Sampler(model or DEFAULT_MODEL, None, seed=seed, spread=spread, threads=threads)
+        self.sampler = Sampler(model or DEFAULT_MODEL, None, seed=seed, spread=spread, threads=threads,
+                               foot_lock=foot_lock)
         self.styles = self.sampler.styles
         self.neutral = self.sampler.style  # the card's neutral style (or its first)
         if reason := self.problem("style", style):

@@ -27,8 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.features import StreamDecoder, decode, encode
-from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.features import StreamDecoder, encode
+from motion_style_ros.core.foot_lock import FootLock, OwnContact
+from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
@@ -44,6 +45,15 @@ from motion_style_ros.runtime.windowed import BanklessSession, OverlapWindows, l
 
 # the paper's best (its Tables 1 and 2), Model2 with a 5-dim style code: 'motion-style train saae'
 DEFAULT_MODEL = BACKENDS["saae"].default_model
+# m: how far a held foot may trail the prior's own ankle before it is dragged along. Longer than a
+# stylizer's leash: a generated stream has no performer to follow, and its held feet, not the
+# prior's, are where the motion stands.
+LEASH = 0.3
+# How far (in per-style stds) a performer window's style code lies from its style's mean, at random.
+# At 1 the codes reached into other styles: judge 1 recognised the chosen style in 0.70 of 4 s
+# windows of 2 min streams per style (seed 1, unlocked); at 0, 1.00 (and in 10 min streams, 1.00).
+# The content codes still vary the motion.
+SPREAD = 0.0
 
 
 def _positions(frames: int, window: int, batch: int) -> np.ndarray:
@@ -155,10 +165,19 @@ class Sampler:
     follow every ``window // 2`` frames; of ``candidates`` decoded at once the one whose first half
     is nearest the last window's second half is taken, and overlap-add (raised-cosine weights that
     sum to one at half overlap) blends the two over that half: the join is spread over half a
-    window instead of happening in one frame."""
+    window instead of happening in one frame.
+
+    With ``foot_lock`` (the default) the poses go through the package's foot lock
+    (:class:`~motion_style_ros.core.foot_lock.FootLock`), with no input to say when a foot is
+    planted: a foot the stream brings below its contact height, slower than a step, is held where it
+    came down (:class:`~motion_style_ros.core.foot_lock.OwnContact`), and a root that runs ahead of
+    its held feet is held back. Unlocked, the prior's feet slid at 0.05-0.2 m/s (at spread 1:
+    0.14-0.51), where real takes' slide at 0.003-0.010. By height alone (any low foot held, however
+    fast) the low steps of an elderly shuffle were held for seconds, dragged on the leash, and judge 1
+    recognised the style in 0.74 of 10 min streams (seed 1) against 0.91 with the speed limit."""
 
     def __init__(self, model: str | Path = DEFAULT_MODEL, style: str | None = None, seed: int = 0,
-                 candidates: int = 8, spread: float = 1.0, threads: int = 1) -> None:
+                 candidates: int = 8, spread: float = SPREAD, threads: int = 1, foot_lock: bool = True) -> None:
         self.path = model_path(str(model))
         self.card = read_card(self.path)
         check_card(self.card, self.path, "saae")
@@ -176,6 +195,7 @@ class Sampler:
         self.candidates, self.spread = candidates, float(spread)
         self._inputs, self._spreads = _style_table(self.card, "style_inputs"), _style_table(self.card, "style_spread")
         self.seed = int(seed)
+        self.foot_lock = bool(foot_lock)
         latent(self.seed, 1)  # a one-line error now for a bad seed
         self.set_style(style or self.card.get("neutral_style", self.styles[0]))
         self.restart()
@@ -193,6 +213,8 @@ class Sampler:
         self._last: np.ndarray | None = None  # the last window taken
         self._ready: list[np.ndarray] = []
         self._pose_decoder: StreamDecoder | None = None
+        self._lock = (FootLock(1, self.fps, canonical(), max_stretch=LEASH), OwnContact(1, self.fps)
+                      ) if self.foot_lock else None
         self.windows: list[np.ndarray] = []  # every window taken (for tests and figures), newest last
         # chunk(): the model frames not yet passed (poses from model frame _first on) and the time
         # (s) of the next output frame
@@ -238,8 +260,18 @@ class Sampler:
         facing +Z, at the start): what a performer node publishes."""
         if self._pose_decoder is None:
             self._pose_decoder = StreamDecoder(1, self.fps)
-        poses = [self._pose_decoder(f[None]) for f in self.frames(n)]
+        poses = [self._placed(*self._pose_decoder(f[None])) for f in self.frames(n)]
         return np.concatenate([q for q, _ in poses]), np.concatenate([p for _, p in poses])
+
+    def _placed(self, q: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One decoded frame with its feet locked (the trajectory goes on from a held-back root)."""
+        if self._lock is None:
+            return q, p
+        lock, own = self._lock
+        _, g_pos = forward_kinematics(lock.skeleton, q, rest_positions(lock.skeleton, p), joints=[])
+        locked_q, locked_p = lock(q, p, own(g_pos[:, lock.ankles]))
+        self._pose_decoder.move(locked_p - p)
+        return locked_q, locked_p
 
     def chunk(self, seconds: float, fps: float) -> Motion:
         """The next ``seconds`` of the stream at ``fps`` as a canonical-skeleton clip, going on from
@@ -264,8 +296,9 @@ class Sampler:
         return Motion.from_rotations(canonical(), rotations, roots, fps)
 
     def motion(self, seconds: float) -> Motion:
-        """The next ``seconds`` of the stream as a clip (its own trajectory, from the origin)."""
-        return decode(self.frames(max(round(seconds * self.fps), 2)), self.fps)
+        """The next ``seconds`` of the stream as a clip at the model's rate (its own trajectory,
+        from the origin): the poses a performer node interpolates."""
+        return Motion.from_rotations(canonical(), *self.poses(max(round(seconds * self.fps), 2)), self.fps)
 
 
 def prior_windows(model: str | Path, count: int, seed: int = 0, styles: list[str] | None = None,
