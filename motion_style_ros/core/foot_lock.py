@@ -89,6 +89,7 @@ class FootLock:
         self._weight = np.zeros((performers, 2))  # 1 locked, fading to 0 after contact
         self._locked = np.zeros((performers, 2), dtype=bool)
         self._axis = np.zeros((performers, 2, 3))  # last good knee axis, for a straight leg
+        self._own = OwnContact(performers, self.fps, speed)  # contacts of a stream with no input
 
     def reset(self, which: Mask = None) -> None:
         """These performers' next frame starts afresh (no lock carried over a jump)."""
@@ -99,6 +100,7 @@ class FootLock:
         self._back[which] = 0.0
         self._weight[which] = 0.0
         self._locked[which] = False
+        self._own.reset(which)
 
     @property
     def ankles(self) -> np.ndarray:
@@ -106,16 +108,19 @@ class FootLock:
         return self._ankle
 
     def __call__(self, rotations: np.ndarray, root_positions: np.ndarray,
-                 input_ankles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                 input_ankles: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The output frame with the legs of planted feet locked: local rotations ``(P, J, 4)``
         and root positions ``(P, 3)`` (new arrays; the root moves only by ``anchor_root``);
         ``input_ankles`` ``(P, 2, 3)``: world positions of the input's ankles (:attr:`ankles`) in
-        the frame the output was made from."""
+        the frame the output was made from; None for a stream with no input (a generated one),
+        whose own low, slow ankles are taken as planted (:class:`OwnContact`)."""
         sk = self.skeleton
         g_rot, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, root_positions), self._legs)
         hip, knee, ankle = g_pos[:, self._hip], g_pos[:, self._knee], g_pos[:, self._ankle]
+        if input_ankles is None:
+            input_ankles = self._own(ankle)
         speed = rot.norm(input_ankles - self._last) * self.fps  # NaN on a first frame
-        self._last = input_ankles
+        self._last = input_ankles.copy()  # reset() writes into it: never into the caller's array
         contact = (input_ankles[..., 1] < self._height) & (speed < self.speed)
 
         step = ankle - self._last_out  # NaN on a first frame
@@ -212,24 +217,29 @@ class FootLock:
 class OwnContact:
     """Input ankles for :class:`FootLock` on a stream that has no input (a generated one): an
     ankle of the stream itself below its contact height and slower than ``speed`` (m/s,
-    horizontal; a foot that slides faster is taken for a low step) is planted where it came down, and the planted position is what the lock is given
-    as the input's ankle; any other ankle is given as it is. The lock then holds planted feet
-    still and, where the stream's root runs ahead of them, holds the root back."""
+    horizontal; a foot that slides faster is taken for a low step) is planted where it came down,
+    and that position is what the lock is given as the input's ankle; any other ankle is given as
+    it is. The lock then holds planted feet still and, where the stream's root runs ahead of them,
+    holds the root back."""
 
-    def __init__(self, performers: int, fps: float, skeleton: Skeleton | None = None,
-                 speed: float = PLANTED_SPEED) -> None:
-        sk = skeleton or canonical()
-        self._height = np.array([CONTACT_HEIGHT[sk.names[sk.index(leg[2])]] for leg in LEGS])
+    def __init__(self, performers: int, fps: float, speed: float = PLANTED_SPEED) -> None:
+        self._height = np.array([CONTACT_HEIGHT[leg[2]] for leg in LEGS])
         self._fps, self.speed = float(fps), speed
         self._last = np.full((performers, 2, 3), np.nan)  # the ankles of the last frame
         self._landed = np.full((performers, 2, 3), np.nan)  # where a planted ankle came down
+
+    def reset(self, which: Mask = None) -> None:
+        """These performers' next frame starts afresh (no planted foot carried over a jump)."""
+        which = slice(None) if which is None else which
+        self._last[which] = np.nan
+        self._landed[which] = np.nan
 
     def __call__(self, ankles: np.ndarray) -> np.ndarray:
         """``(P, 2, 3)``: the lock's input ankles for this frame's own ankles ``(P, 2, 3)``."""
         step = ankles - self._last
         speed = np.hypot(step[..., 0], step[..., 2]) * self._fps  # NaN on the first frame
         down = (ankles[..., 1] < self._height) & ~(speed >= self.speed)
-        self._last = ankles
+        self._last = ankles.copy()  # reset() writes into it: never into the caller's array
         self._landed = np.where((down & np.isnan(self._landed[..., 0]))[..., None], ankles, self._landed)
         self._landed[~down] = np.nan
         return np.where(down[..., None], self._landed, ankles)

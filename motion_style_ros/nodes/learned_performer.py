@@ -47,7 +47,8 @@ class LearnedPerformer(PlayerNode):
         self.frame_id = self.param("frame_id", "", "header.frame_id of the messages", read_only=False)
         layout = self.param("layout", "", "JointState layout YAML (config/layouts/); empty: canonical")
         layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
-        stream = learned.LearnedStream(model, style, seed, spread, self.fps, layout, foot_lock=foot_lock)  # checks the style
+        # checks the style
+        stream = learned.LearnedStream(model, style, seed, spread, self.fps, layout, foot_lock=foot_lock)
         if reason := stream.problem("frame_id", self.frame_id):  # dynamically typed: checked here
             raise MotionStyleError(f"parameter frame_id: {reason}")
         self.stream = stream

@@ -28,8 +28,8 @@ import numpy as np
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.features import StreamDecoder, encode
-from motion_style_ros.core.foot_lock import FootLock, OwnContact
-from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
+from motion_style_ros.core.foot_lock import FootLock
+from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
@@ -170,7 +170,8 @@ class Sampler:
     With ``foot_lock`` (the default) the poses go through the package's foot lock
     (:class:`~motion_style_ros.core.foot_lock.FootLock`), with no input to say when a foot is
     planted: a foot the stream brings below its contact height, slower than a step, is held where it
-    came down (:class:`~motion_style_ros.core.foot_lock.OwnContact`), and a root that runs ahead of
+    came down (``FootLock`` given no input ankles:
+    :class:`~motion_style_ros.core.foot_lock.OwnContact`), and a root that runs ahead of
     its held feet is held back. Unlocked, the prior's feet slid at 0.05-0.2 m/s (at spread 1:
     0.14-0.51), where real takes' slide at 0.003-0.010. By height alone (any low foot held, however
     fast) the low steps of an elderly shuffle were held for seconds, dragged on the leash, and judge 1
@@ -213,8 +214,7 @@ class Sampler:
         self._last: np.ndarray | None = None  # the last window taken
         self._ready: list[np.ndarray] = []
         self._pose_decoder: StreamDecoder | None = None
-        self._lock = (FootLock(1, self.fps, canonical(), max_stretch=LEASH), OwnContact(1, self.fps)
-                      ) if self.foot_lock else None
+        self._lock = FootLock(1, self.fps, max_stretch=LEASH) if self.foot_lock else None
         self.windows: list[np.ndarray] = []  # every window taken (for tests and figures), newest last
         # chunk(): the model frames not yet passed (poses from model frame _first on) and the time
         # (s) of the next output frame
@@ -267,9 +267,7 @@ class Sampler:
         """One decoded frame with its feet locked (the trajectory goes on from a held-back root)."""
         if self._lock is None:
             return q, p
-        lock, own = self._lock
-        _, g_pos = forward_kinematics(lock.skeleton, q, rest_positions(lock.skeleton, p), joints=[])
-        locked_q, locked_p = lock(q, p, own(g_pos[:, lock.ankles]))
+        locked_q, locked_p = self._lock(q, p)  # no input: its own planted feet
         self._pose_decoder.move(locked_p - p)
         return locked_q, locked_p
 
