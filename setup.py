@@ -54,6 +54,8 @@ setup(
     # the distribution; elsewhere requirements-ros-wheels.txt brings them from PyPI.
     install_requires=[
         'numpy',
+        # the core's per-pose arithmetic (core/kernels.py), compiled: a streamed frame's cost
+        'numba',
         'scipy',
         'onnxruntime',
         'python-osc',

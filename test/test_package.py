@@ -20,7 +20,7 @@ ROS_EXEC_DEPENDS = [
     "rclpy", "sensor_msgs", "trajectory_msgs", "geometry_msgs", "visualization_msgs",
     "std_msgs", "std_srvs", "rcl_interfaces", "diagnostic_msgs",
 ]
-EXEC_DEPENDS = ROS_EXEC_DEPENDS + ["python3-numpy", "python3-scipy"]
+EXEC_DEPENDS = ROS_EXEC_DEPENDS + ["python3-numpy", "python3-numba", "python3-scipy"]
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +76,7 @@ def test_install_requires_has_no_torch_and_no_ros_wheel(setup_kwargs):
     assert names, "install_requires is empty"
     assert "torch" not in names
     assert not [n for n in names if n.startswith("ros-") or n == "rclpy"], names
-    assert {"numpy", "scipy", "onnxruntime", "python-osc", "rosbags"} <= set(names)
+    assert {"numpy", "numba", "scipy", "onnxruntime", "python-osc", "rosbags"} <= set(names)
     assert "torch==2.13.0" in setup_kwargs["extras_require"]["train"]
 
 
@@ -166,7 +166,7 @@ def test_cli_help_imports_nothing_heavy():
             main.main(["--help"])
         except SystemExit:
             pass
-        heavy = ("torch", "onnx", "onnxruntime", "rclpy", "matplotlib", "scipy")
+        heavy = ("torch", "onnx", "onnxruntime", "rclpy", "matplotlib", "scipy", "numba")
         sys.stderr.write(json.dumps([m for m in heavy if m in sys.modules]))
     """)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -28,7 +28,7 @@ import functools
 
 import numpy as np
 
-from motion_style_ros.core import rotations as rot
+from motion_style_ros.core import kernels, rotations as rot
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.proportions import stance_sums
 from motion_style_ros.core.skeleton import Skeleton
@@ -42,6 +42,7 @@ STD_FLOOR = 0.05  # 6D components that hardly vary in the training data still al
 ANKLES = ("Foot_L", "Foot_R")
 PLANTED_PERCENTILE = 5.0  # a clip's planted-ankle height: this percentile of its ankle heights
 HANG_DEGREES = 45.0  # an arm hangs while its upper arm is this close to straight down
+_HANG_COS = float(np.cos(np.radians(HANG_DEGREES)))
 
 
 def statistics(motions: list[Motion]) -> dict[str, np.ndarray]:
@@ -71,13 +72,13 @@ def arms_hang(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     frames only: how a raised or waving arm's frames turn says more about the motion than the rig."""
     upper, lower = _arm_bones(skeleton)
     bone = positions[..., lower, :] - positions[..., upper, :]
-    return -bone[..., 1] > np.cos(np.radians(HANG_DEGREES)) * np.maximum(rot.norm(bone), 1e-9)
+    return -bone[..., 1] > _HANG_COS * np.maximum(rot.norm(bone), 1e-9)
 
 
 @functools.cache
 def _arm_bones(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
     """The upper and lower arm joints (left, right), looked up once per skeleton."""
-    return tuple(np.array([skeleton.index(f"{j}_{s}") for s in "LR"]) for j in ("UpperArm", "LowerArm"))
+    return tuple(np.array([skeleton.index(f"{j}_{s}") for s in "LR"], dtype=np.int64) for j in ("UpperArm", "LowerArm"))
 
 
 def planted_ankle_height(motion: Motion) -> float:
@@ -295,6 +296,7 @@ class StreamRolls:
         self.model = roll_model(stats)
         self.skeleton = skeleton
         self.joints = [skeleton.index(n) for n in ARM_JOINTS]
+        self._joints = np.array(self.joints, dtype=np.int64)
         self._every = max(1, round(solve_seconds * fps))
         self.settle_frames = self._settle = round(settle_seconds * fps)
         self._late = max(1, round(fps))
@@ -335,12 +337,11 @@ class StreamRolls:
         measured = np.zeros(len(live), dtype=bool)
         if not live.any():
             return measured
-        some = slice(None) if live.all() else live  # a view, not a gather, in the usual case
-        moments = arm_moments(rotations[some][None], arms_hang(positions[some], self.skeleton)[None],
-                              self.joints)
-        for total, add in zip((self._second, self._first, self._count), moments):
-            total[some] += add
-        self.frames[some] += 1
+        upper, lower = _arm_bones(self.skeleton)
+        kernels.add_arm_moments(np.ascontiguousarray(rotations, dtype=np.float64),
+                                np.ascontiguousarray(positions, dtype=np.float64), self._joints, upper, lower,
+                                _HANG_COS, live, self._second, self._first, self._count)
+        self.frames[live] += 1
         n = self.frames
         # every frame while the first few hanging-arm frames come in (until the rig is measured),
         # then every solve_seconds, every second after
@@ -396,10 +397,6 @@ class StreamGround:
     def update(self, ankles: np.ndarray) -> np.ndarray:
         """Follow one frame's ankle world positions ``(P, 2, 3)`` (the stream's own, not moved);
         returns the offsets ``(P,)``."""
-        still = rot.norm(ankles - self._last) * self._fps < self.speed  # NaN on a first frame: not still
-        self._last = ankles
-        planted = still.any(axis=-1)
-        height = np.where(still, ankles[..., 1], np.inf).min(axis=-1) - self.ankle_height
-        error = np.where(planted, height, self.offset) - self.offset
-        self.offset = self.offset + np.where(error < 0.0, self._down, self._up) * error
+        kernels.follow_ground(np.ascontiguousarray(ankles, dtype=np.float64), self._last, self.offset, self._fps,
+                              float(self.speed), self.ankle_height, self._down, self._up)
         return self.offset

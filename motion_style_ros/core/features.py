@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from motion_style_ros.core import rotations as rot
+from motion_style_ros.core import kernels, rotations as rot
 from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
@@ -88,41 +88,30 @@ def _check_canonical(sk: Skeleton) -> None:
 
 def facing_yaw(global_positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     """Heading of the body (radians about +Y, 0 = facing +Z) from hips and shoulders, per frame."""
-    p = global_positions
-    ul, ur, al, ar = _joints(skeleton, _ACROSS)
-    across = (p[..., ul, :] - p[..., ur, :]) + (p[..., al, :] - p[..., ar, :])
-    forward = rot.cross(across, UP)
-    return np.arctan2(forward[..., 0], forward[..., 2])
+    lead = global_positions.shape[:-2]
+    rows = np.ascontiguousarray(global_positions, dtype=np.float64).reshape((-1,) + global_positions.shape[-2:])
+    return kernels.facing_yaw(rows, _index(skeleton, _ACROSS)).reshape(lead)
 
 
 @functools.cache
-def _joints(skeleton: Skeleton, names: tuple[str, ...]) -> list[int]:
+def _index(skeleton: Skeleton, names: tuple[str, ...]) -> np.ndarray:
     """Indices of named joints, looked up once per skeleton (streamed frames ask every time)."""
-    return [skeleton.index(n) for n in names]
+    return np.array([skeleton.index(n) for n in names], dtype=np.int64)
 
 
 @functools.cache
-def _ancestry(skeleton: Skeleton, joint: int) -> tuple[int, ...]:
-    """A joint's ancestors from the root, and the joint."""
-    chain = [joint]
-    while skeleton.parents[chain[0]] >= 0:
-        chain.insert(0, skeleton.parents[chain[0]])
-    return tuple(chain)
+def _parents(skeleton: Skeleton) -> np.ndarray:
+    return np.array(skeleton.parents, dtype=np.int64)
 
 
-def _global_rotation(skeleton: Skeleton, rotations: np.ndarray, joint: int) -> np.ndarray:
-    """One joint's global rotation ``(..., 4)`` as the product of its ancestry's local ones (for the
-    pelvis, one product: cheaper than reading it off forward kinematics' matrices)."""
-    first, *rest = _ancestry(skeleton, joint)
-    g = rotations[..., first, :]
-    for j in rest:
-        g = rot.multiply(g, rotations[..., j, :])
-    return g
+@functools.cache
+def _offsets(skeleton: Skeleton) -> np.ndarray:
+    return np.ascontiguousarray(skeleton.offsets, dtype=np.float64)
 
 
 @functools.cache
 def _feet(skeleton: Skeleton) -> np.ndarray:
-    return np.array(skeleton.feet, dtype=np.intp)
+    return np.array(skeleton.feet, dtype=np.int64)
 
 
 @functools.cache
@@ -179,32 +168,16 @@ def _encode_frames(
     The one implementation behind :func:`encode` (leading axis: time) and :class:`StreamEncoder`
     (leading axis: performers).
     """
-    joints = lay.index
-    n = len(joints)
-    inv_face = rot.conjugate(rot.from_yaw(yaw))  # (..., 4)
-    ground = g_pos[..., sk.pelvis, :] * _GROUND
-    prev_ground = prev_g_pos[..., sk.pelvis, :] * _GROUND
-    # Everything that turns into the facing frame, in one call: ground velocity, joint positions
-    # relative to the ground point, joint velocities.
-    world = np.concatenate([((ground - prev_ground) * fps)[..., None, :],
-                            g_pos[..., joints, :] - ground[..., None, :],
-                            (g_pos[..., joints, :] - prev_g_pos[..., joints, :]) * fps], axis=-2)
-    facing = rot.rotate(inv_face[..., None, :], world)
+    lead, n_joints = yaw.shape, rotations.shape[-2]
 
-    out = np.empty(yaw.shape + (lay.size,), dtype=np.float32)
-    yaw_rate = wrap_angle(yaw - prev_yaw) * fps
-    root = lay.slices["root"].start
-    out[..., root:root + 2] = facing[..., 0, ::2]
-    out[..., root + 2] = g_pos[..., sk.pelvis, 1]
-    out[..., root + 3] = yaw_rate
+    def rows(a: np.ndarray, *shape: int) -> np.ndarray:
+        return np.ascontiguousarray(a, dtype=np.float64).reshape((-1, *shape))
 
-    local = rotations[..., joints, :].copy()
-    local[..., 0, :] = rot.multiply(inv_face, pelvis_rot)  # pelvis relative to facing
-    out[..., lay.slices["rot6d"]] = rot.to_6d(local).reshape(yaw.shape + (-1,))
-    out[..., lay.slices["pos"]] = facing[..., 1:1 + n, :].reshape(yaw.shape + (-1,))
-    out[..., lay.slices["vel"]] = facing[..., 1 + n:, :].reshape(yaw.shape + (-1,))
-    out[..., lay.slices["contact"]] = _contacts(g_pos, prev_g_pos, sk, fps)
-    return out
+    out = kernels.encode_rows(
+        lay.index, _feet(sk), _contact_heights(sk), sk.pelvis, rows(rotations, n_joints, 4),
+        rows(pelvis_rot, 4), rows(g_pos, n_joints, 3), rows(prev_g_pos, n_joints, 3), rows(yaw),
+        rows(prev_yaw), float(fps), CONTACT_SPEED, lay.size)
+    return out.reshape(lead + (lay.size,))
 
 
 def _decoded_size(lay: FeatureLayout) -> int:
@@ -233,16 +206,13 @@ def _pose(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Local rotations ``(..., J, 4)`` and pelvis positions ``(..., 3)`` of decoded frames placed at
     ``ground`` with heading ``yaw``; the one implementation behind :func:`decode` and
-    :class:`StreamDecoder`."""
+    :class:`StreamDecoder`. Joints above the pelvis (the canonical static root) stay identity."""
     lead = f.shape[:-1]
-    rotations = rot.identity(lead + (sk.n_joints,))
-    local = rot.from_6d(f[..., lay.slices["rot6d"]].reshape(lead + (len(lay.joints), 6)))
-    rotations[..., lay.index, :] = local
-    # Joints above the pelvis (the canonical static root) stay identity at the origin.
-    rotations[..., sk.pelvis, :] = rot.multiply(rot.from_yaw(yaw), local[..., 0, :])
-    root_pos = ground.copy()
-    root_pos[..., 1] += f[..., lay.slices["root"].start + 2]
-    return rotations, root_pos
+    rotations, root_pos = kernels.pose_rows(
+        lay.index, sk.pelvis, sk.n_joints, np.ascontiguousarray(f, dtype=np.float64).reshape(-1, f.shape[-1]),
+        np.ascontiguousarray(yaw, dtype=np.float64).reshape(-1),
+        np.ascontiguousarray(ground, dtype=np.float64).reshape(-1, 3))
+    return rotations.reshape(lead + (sk.n_joints, 4)), root_pos.reshape(lead + (3,))
 
 
 def decode(
@@ -296,20 +266,16 @@ class StreamEncoder:
     def __call__(self, rotations: np.ndarray, root_positions: np.ndarray) -> np.ndarray:
         """``(P, F)`` float32 features of one frame: local rotations ``(P, J, 4)`` and pelvis
         positions ``(P, 3)`` (the translation of the pelvis in its parent's frame)."""
-        sk = self.skeleton
-        _, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, root_positions), joints=[])
-        yaw = facing_yaw(g_pos, sk)
-        previous = np.where(self._fresh[:, None, None], g_pos, self._last)
-        prev_yaw = np.where(self._fresh, yaw, self._yaw)
-        out = _encode_frames(sk, self._layout, rotations, _global_rotation(sk, rotations, sk.pelvis), g_pos,
-                             previous, yaw, prev_yaw,
-                             self.fps)
-        self._last, self._yaw, self._fresh[:] = g_pos, yaw, False
-        return out
+        sk, lay = self.skeleton, self._layout
+        return kernels.encode_stream(
+            _parents(sk), _offsets(sk), sk.pelvis, _index(sk, _ACROSS), lay.index, _feet(sk), _contact_heights(sk),
+            np.ascontiguousarray(rotations, dtype=np.float64), np.ascontiguousarray(root_positions, dtype=np.float64),
+            self._last, self._yaw, self._fresh, float(self.fps), CONTACT_SPEED, lay.size)
 
     @property
     def positions(self) -> np.ndarray:
-        """World positions ``(P, J, 3)`` of each performer's last frame."""
+        """World positions ``(P, J, 3)`` of each performer's last frame (the encoder's own array,
+        overwritten by the next frame: copy what is kept)."""
         return self._last
 
     def facing(self) -> tuple[np.ndarray, np.ndarray]:
@@ -366,9 +332,6 @@ class StreamDecoder:
             raise MotionStyleError(
                 f"features for {f.shape[0]} performers; this decoder has {len(self._yaw)}"
             )
-        root = f[:, lay.slices["root"]]
-        fresh = self._fresh
-        yaw = np.where(fresh, self._yaw, self._yaw + root[:, 3] / self.fps)
-        ground = np.where(fresh[:, None], self._ground, self._ground + _ground_step(root, yaw, self.fps))
-        self._yaw, self._ground, self._fresh[:] = yaw, ground, False
-        return _pose(self.skeleton, lay, f, yaw, ground)
+        sk = self.skeleton
+        return kernels.decode_stream(lay.index, sk.pelvis, sk.n_joints, np.ascontiguousarray(f), self._yaw,
+                                     self._ground, self._fresh, float(self.fps))

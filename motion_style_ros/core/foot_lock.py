@@ -32,21 +32,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.easing import smoothstep
-from motion_style_ros.core.features import CONTACT_HEIGHT, Mask, wrap_angle
+from motion_style_ros.core import kernels
+from motion_style_ros.core.features import CONTACT_HEIGHT, Mask
 from motion_style_ros.core.motion import forward_kinematics, rest_positions
 from motion_style_ros.core.skeleton import Skeleton, canonical
 
 LEGS = (("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R"))
 TOES = ("Toes_L", "Toes_R")
-_EPS = 1e-9
+_EPS = 1e-9  # the smallest length the lock divides by
 GLIDE = 0.5  # a new lock follows this much of the stylizer's ankle motion, then its square, ...
 _NEAR = 1e-6  # m: a goal this close to the ankle leaves the leg as it is
 ANCHOR_EASE = 0.3  # the fraction of the way to the wanted hold-back the root goes each frame
 DOWN = 0.08  # m: a stylized ankle this far above the contact height is still down (on its toes)
 PLANTED_SPEED = 0.3  # m/s: an ankle below its contact height and slower than this is planted
-_SIDES = np.tile([0, 1], 3)  # the leg (left, right) of each joint of the chain: hips, knees, ankles
 
 
 class FootLock:
@@ -63,11 +61,10 @@ class FootLock:
                  anchor_stretch: float = 0.02) -> None:
         self.skeleton = sk = skeleton or canonical()
         self.fps = float(fps)
-        self._hip, self._knee, self._ankle = (np.array([sk.index(leg[k]) for leg in LEGS]) for k in range(3))
-        # the joints whose world rotations the IK needs: the hips' parents, then hip, knee, ankle
-        self._legs = [int(j) for joints in ([sk.parents[j] for j in self._hip], self._hip, self._knee,
-                                            self._ankle) for j in joints]
-        self._chain = np.concatenate([self._hip, self._knee, self._ankle])
+        self._hip, self._knee, self._ankle = (np.array([sk.index(leg[k]) for leg in LEGS], dtype=np.int64)
+                                              for k in range(3))
+        self._parents = np.array(sk.parents, dtype=np.int64)
+        self._offsets = np.ascontiguousarray(sk.offsets, dtype=np.float64)
         self._height = np.array([CONTACT_HEIGHT[sk.names[j]] for j in self._ankle])
         self._toes = sk.offsets[[sk.index(n) for n in TOES]]  # the feet's forward vectors
         self._fade = 1.0 / max(release_seconds * self.fps, 1.0)  # weight lost per frame
@@ -113,105 +110,21 @@ class FootLock:
         and root positions ``(P, 3)`` (new arrays; the root moves only by ``anchor_root``);
         ``input_ankles`` ``(P, 2, 3)``: world positions of the input's ankles (:attr:`ankles`) in
         the frame the output was made from; None for a stream with no input (a generated one),
-        whose own low, slow ankles are taken as planted (:class:`OwnContact`)."""
+        whose own low, slow ankles are taken as planted (:class:`OwnContact`). The arithmetic is
+        :func:`motion_style_ros.core.kernels.lock_feet`."""
         sk = self.skeleton
-        g_rot, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, root_positions), self._legs)
-        hip, knee, ankle = g_pos[:, self._hip], g_pos[:, self._knee], g_pos[:, self._ankle]
+        rotations = np.ascontiguousarray(rotations, dtype=np.float64)
+        roots = np.ascontiguousarray(root_positions, dtype=np.float64)
         if input_ankles is None:
-            input_ankles = self._own(ankle)
-        speed = rot.norm(input_ankles - self._last) * self.fps  # NaN on a first frame
-        self._last = input_ankles.copy()  # reset() writes into it: never into the caller's array
-        contact = (input_ankles[..., 1] < self._height) & (speed < self.speed)
-
-        step = ankle - self._last_out  # NaN on a first frame
-        self._last_out = ankle
-        start = contact & ~self._locked
-        # A new lock lets the ankle glide on with the stylizer's motion, less each frame, so that it
-        # comes to rest without a jolt.
-        glide = self._locked & contact
-        self._target += np.where(glide[..., None], self._glide[..., None] * step, 0.0)  # finite where gliding
-        self._glide = np.where(start, GLIDE, self._glide * GLIDE)
-        np.copyto(self._target, ankle, where=start[..., None])
-        np.copyto(self._landed, input_ankles, where=start[..., None])
-        parent, g_upper, g_lower, g_foot = (g_rot[:, 2 * k:2 * k + 2] for k in range(4))
-        toes = rot.rotate(g_foot, self._toes)
-        heading = np.arctan2(toes[..., 0], toes[..., 2])
-        np.copyto(self._heading, heading, where=start)
-        held_turn = wrap_angle(self._heading - heading)  # a held foot's heading against the stylizer's
-        # the leash: a held ankle at most max_stretch from the stylizer's
-        away = ankle - self._target
-        reach = rot.norm(away, keepdims=True)
-        root = np.array(root_positions, dtype=np.float64)
-        if self.anchor_root:
-            shift = self._anchor(away - (input_ankles - self._landed), ankle, root)
-            root += shift
-            hip, knee, ankle = hip + shift[:, None], knee + shift[:, None], ankle + shift[:, None]
-            away = away + shift[:, None]
-            reach = rot.norm(away, keepdims=True)
-        self._last_root = root
-        self._target += np.where(self._locked[..., None] & (reach > self.max_stretch),
-                                 away * (1.0 - self.max_stretch / np.maximum(reach, _EPS)), 0.0)
-        released = self._locked & ~contact
-        np.copyto(self._offset, self._target - ankle, where=released[..., None])
-        np.copyto(self._turn, held_turn, where=released)
-        self._locked = contact
-        self._weight = np.where(contact, 1.0, np.maximum(self._weight - self._fade, 0.0))
-        # Locked: the ankle stays at its target. Released: the correction it had then fades out,
-        # so the leg eases back onto the stylizer's swing rather than being held behind. Not
-        # locked: no lower than the input's ankle.
-        fade = smoothstep(self._weight)
-        goal = np.where(contact[..., None], self._target, ankle + fade[..., None] * self._offset)
-        if self.clearance:
-            goal[..., 1] = np.where(contact, goal[..., 1], np.maximum(goal[..., 1], input_ankles[..., 1]))
-        turn = np.where(contact, held_turn, fade * self._turn)
-        moved = (rot.norm(goal - ankle) > _NEAR) | (np.abs(turn) > _NEAR)
-        if not moved.any():
-            return rotations.copy(), root
-        g_upper, g_lower = self._two_bone(g_upper, g_lower, hip, knee, ankle, goal)
-        g_foot = rot.multiply(rot.from_yaw(turn), g_foot)
-        # local = parent's world^-1 * world, for upper leg, lower leg and foot in one call
-        local = rot.multiply(rot.conjugate(np.concatenate([parent, g_upper, g_lower], axis=1)),
-                             np.concatenate([g_upper, g_lower, g_foot], axis=1))
-        out = rotations.copy()
-        out[:, self._chain] = np.where(moved[:, _SIDES, None], local, out[:, self._chain])
-        return out, root
-
-    def _anchor(self, ahead: np.ndarray, ankle: np.ndarray, root: np.ndarray) -> np.ndarray:
-        """``(P, 3)``: how far to move each root back along its own step of this frame (at most
-        the whole step) so that no held ankle whose stylized foot is down has run more than
-        ``anchor_stretch`` further since it landed than the input's ankle (``ahead``, ``(P, 2, 3)``)."""
-        reach = rot.norm(ahead, keepdims=True)
-        down = self._locked & (reach[..., 0] > self.anchor_stretch) & (ankle[..., 1] < self._height + DOWN)
-        step = root - self._last_root
-        step[np.isnan(step)] = 0.0  # NaN on a first frame: no step to hold back
-        step[:, 1] = 0.0
-        length = rot.norm(step, keepdims=True)
-        forward = step / np.maximum(length, _EPS)
-        beyond = ahead * (1.0 - self.anchor_stretch / np.maximum(reach, _EPS))
-        excess = np.add.reduce(beyond * forward[:, None], axis=-1)  # how far along the step
-        want = np.where(down, excess, 0.0).max(axis=1, initial=0.0)
-        # eased in and out, so the root's speed changes smoothly (the IK holds the foot meanwhile)
-        self._back = np.minimum(self._back + ANCHOR_EASE * (want - self._back), length[:, 0])
-        return -forward * self._back[:, None]
-
-    def _two_bone(self, g_upper, g_lower, hip, knee, ankle, goal):
-        """World rotations of upper and lower leg that put the ankle at ``goal`` (as near as the
-        leg reaches): bend the knee to the goal's distance, then swing the hip onto it."""
-        u, v = hip - knee, ankle - knee
-        a, b = rot.norm(u), rot.norm(v)
-        axis = rot.cross(u, v)
-        size = rot.norm(axis, keepdims=True)
-        good = size[..., 0] > 1e-6 * a * b
-        self._axis[good] = (axis / np.maximum(size, _EPS))[good]
-        axis = self._axis  # zero until the leg was first seen bent: then the knee is left alone
-        known = (axis != 0.0).any(axis=-1)
-        c = np.minimum(np.maximum(rot.norm(goal - hip), np.abs(a - b) + 1e-4), a + b - 1e-4)
-        now = np.arccos(_unit_clip(np.add.reduce(u * v, axis=-1) / np.maximum(a * b, _EPS)))
-        wanted = np.arccos(_unit_clip((a * a + b * b - c * c) / np.maximum(2 * a * b, _EPS)))
-        bend = rot.from_axis_angle(axis, np.where(known, wanted - now, 0.0))
-        ankle = knee + rot.rotate(bend, v)
-        swing = rot.between(ankle - hip, goal - hip)
-        return rot.multiply(swing, g_upper), rot.multiply(swing, rot.multiply(bend, g_lower))
+            _, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, roots), joints=[])
+            input_ankles = self._own(g_pos[:, self._ankle])
+        return kernels.lock_feet(
+            self._parents, self._offsets, sk.pelvis, self._hip, self._knee, self._ankle, self._toes,
+            self._height, rotations, roots, np.ascontiguousarray(input_ankles, dtype=np.float64),
+            self._last, self._last_out, self._last_root, self._back, self._target, self._landed,
+            self._offset, self._heading, self._turn, self._glide, self._weight, self._locked, self._axis,
+            self.fps, float(self.speed), float(self.max_stretch), self._fade, bool(self.clearance),
+            bool(self.anchor_root), float(self.anchor_stretch), GLIDE, _NEAR, DOWN, ANCHOR_EASE, _EPS)
 
 
 class OwnContact:
@@ -243,8 +156,3 @@ class OwnContact:
         self._landed = np.where((down & np.isnan(self._landed[..., 0]))[..., None], ankles, self._landed)
         self._landed[~down] = np.nan
         return np.where(down[..., None], self._landed, ankles)
-
-
-def _unit_clip(x: np.ndarray) -> np.ndarray:
-    """``x`` clipped to [-1, 1] (np.clip costs twice as much on one frame's few numbers)."""
-    return np.minimum(np.maximum(x, -1.0), 1.0)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from motion_style_ros.core import rotations as rot
+from motion_style_ros.core import kernels, rotations as rot
 from motion_style_ros.core.skeleton import Skeleton, subset as skeleton_subset
 from motion_style_ros.errors import MotionStyleError
 
@@ -92,76 +92,23 @@ def rest_positions(skeleton: Skeleton, root_positions: np.ndarray) -> np.ndarray
     return positions
 
 
-# Up to this many poses, forward kinematics composes 4x4 transforms by pointer doubling: a handful
-# of numpy calls (what a streamed frame costs); above it, quaternions level by level (fewer
-# operations per pose, faster on clips).
-_MATRIX_FK_POSES = 16
-
-
 def forward_kinematics(
     skeleton: Skeleton, rotations: np.ndarray, positions: np.ndarray,
     joints: list[int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones; with
-    ``joints``, the global rotations of those joints only (a streamed frame rarely needs them all)."""
-    if rotations[..., 0, 0].size <= _MATRIX_FK_POSES:
-        # Each joint's transform relative to an ancestor that doubles its distance every round:
-        # T_j <- T_a(j) @ T_j, a(j) <- a(a(j)); joint J is the world (identity).
-        t = np.empty(rotations.shape[:-2] + (rotations.shape[-2] + 1, 4, 4))
-        t[...] = _template(rotations.shape[-2])  # the bottom rows; the world's identity
-        t[..., :-1, :3, :3] = rot.to_matrix(rotations)
-        t[..., :-1, :3, 3] = positions
-        for ancestors in _doubling(skeleton.parents):
-            t = t[..., ancestors, :, :] @ t
-        g_pos = t[..., :-1, :3, 3].copy()  # contiguous: what callers compute with next
-        if joints is not None and not len(joints):
-            return np.empty(rotations.shape[:-2] + (0, 4)), g_pos
-        g = t[..., :-1, :3, :3]
-        return rot.from_matrix(g if joints is None else g[..., joints, :, :]), g_pos
-    g_pos = np.empty(positions.shape, dtype=np.float64)
-    g_pos[..., 0, :] = positions[..., 0, :]
-    g_rot = np.empty(rotations.shape, dtype=np.float64)
-    g_rot[..., 0, :] = rotations[..., 0, :]
-    for level, parents in _levels(skeleton.parents):  # a tree level at a time, in one call each
-        g_rot[..., level, :] = rot.multiply(g_rot[..., parents, :], rotations[..., level, :])
-        g_pos[..., level, :] = g_pos[..., parents, :] + rot.rotate(
-            g_rot[..., parents, :], positions[..., level, :]
-        )
+    ``joints``, the global rotations of those joints only."""
+    lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
+    q = np.ascontiguousarray(rotations, dtype=np.float64).reshape(-1, n_joints, 4)
+    t = np.ascontiguousarray(np.broadcast_to(positions, lead + (n_joints, 3)), dtype=np.float64)
+    g_rot, g_pos = kernels.forward_kinematics(_parents(skeleton), q, t.reshape(-1, n_joints, 3))
+    g_rot, g_pos = g_rot.reshape(lead + (n_joints, 4)), g_pos.reshape(lead + (n_joints, 3))
     return (g_rot if joints is None else g_rot[..., joints, :]), g_pos
 
 
 @functools.cache
-def _template(joints: int) -> np.ndarray:
-    """``(joints + 1, 4, 4)``: what forward kinematics' transforms hold before a pose is filled in
-    (the bottom row ``0 0 0 1``; the extra last one, the world, the identity)."""
-    t = np.zeros((joints + 1, 4, 4))
-    t[:, 3, 3] = 1.0
-    t[-1] = np.eye(4)
-    return t
-
-
-@functools.cache
-def _doubling(parents: tuple[int, ...]) -> list[np.ndarray]:
-    """Per round of pointer doubling, every joint's current ancestor (the world is the extra last
-    index, its own ancestor); after the last round every joint's is the world. Depth d takes
-    ceil(log2(d + 1)) rounds."""
-    world = len(parents)
-    ancestor = np.array([world if p < 0 else p for p in parents] + [world])
-    rounds = []
-    while (ancestor != world).any():
-        rounds.append(ancestor)
-        ancestor = ancestor[ancestor]
-    return rounds
-
-
-@functools.cache
-def _levels(parents: tuple[int, ...]) -> list[tuple[list[int], list[int]]]:
-    """Joints below the root grouped by depth, each level with its joints' parents."""
-    depth = [0] * len(parents)
-    for j, p in enumerate(parents[1:], start=1):
-        depth[j] = depth[p] + 1
-    levels = [[j for j in range(len(parents)) if depth[j] == d] for d in range(1, max(depth) + 1)]
-    return [(joints, [parents[j] for j in joints]) for joints in levels]
+def _parents(skeleton: Skeleton) -> np.ndarray:
+    return np.array(skeleton.parents, dtype=np.int64)
 
 
 def local_from_global(skeleton: Skeleton, global_rotations: np.ndarray) -> np.ndarray:

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_style_ros.core.easing import smoothstep
+from motion_style_ros.core import kernels
 from motion_style_ros.core.features import Mask, feature_layout
 from motion_style_ros.core.skeleton import Skeleton, canonical
 
 ROOT_MOTION = [0, 1, 3]  # the root block's forward-plane velocity and yaw-rate columns
-
+_ROOT_MOTION = np.array(ROOT_MOTION, dtype=np.int64)
 
 class Standing:
     """Root motion of standing performers taken from the input, for ``performers`` streams at
@@ -44,16 +44,9 @@ class Standing:
         self._weight[which] = 0.0
 
     def __call__(self, output: np.ndarray, features: np.ndarray) -> np.ndarray:
-        """The model's output frame ``(P, >= 4)`` (root block first) with the root motion of
-        standing performers eased into that of the input frame's ``features`` ``(P, F)``."""
-        feet_down = (features[:, self._contact] > 0.5) @ self._sides  # (P, 2): feet down per side
-        down = np.minimum.reduce(feet_down, axis=1) > 0.0
-        self._still = np.where(down, self._still + self._frame, 0.0)
-        target = self._still >= self.hold_seconds - 1e-9
-        self._weight = np.minimum(np.maximum(self._weight + np.where(target, self._ease, -self._ease), 0.0), 1.0)
-        if not self._weight.any():
-            return output
-        out = np.array(output, dtype=np.float64)
-        w = smoothstep(self._weight)[:, None]
-        out[:, ROOT_MOTION] = (1.0 - w) * out[:, ROOT_MOTION] + w * features[:, ROOT_MOTION]
-        return out
+        """The model's output frame ``(P, >= 4)`` (root block first) as float64 with the root
+        motion of standing performers eased into that of the input frame's ``features`` ``(P, F)``
+        (:func:`motion_style_ros.core.kernels.stand`)."""
+        return kernels.stand(self._contact.start, self._sides, _ROOT_MOTION, self._frame, float(self.hold_seconds),
+                             self._ease, self._still, self._weight, np.ascontiguousarray(output),
+                             np.ascontiguousarray(features))

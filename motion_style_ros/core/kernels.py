@@ -1,0 +1,577 @@
+"""The core's per-pose arithmetic compiled with numba: forward kinematics, heading, features and
+their inverse, one pose (a row) at a time.
+
+Why compiled: a streamed frame is a few dozen numbers per performer, and in numpy each operation on
+them costs its call overhead (about a microsecond) more than its arithmetic; a model frame took
+hundreds of such calls. Compiled, a row costs its arithmetic. The same kernels serve whole clips
+(rows are frames) and streams (rows are performers), so there is one implementation of each.
+
+Callers in :mod:`~motion_style_ros.core.motion` and :mod:`~motion_style_ros.core.features` pass
+float64 C-contiguous arrays of rows and the skeleton's index arrays; the kernels are compiled on
+first use and cached on disk (numba's ``cache=True``: beside this file, or in the user's cache
+folder where the package's folder is read-only), so a process after the first starts in a
+fraction of a second. Quaternions are ``(w, x, y, z)`` as in :mod:`~motion_style_ros.core.rotations`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_EPS = 1e-12  # rotations._EPS: the smallest norm a vector is divided by
+
+
+@njit(cache=True, inline="always")
+def _qmul(a, b, out) -> None:
+    """``out = a * b`` (Hamilton product; ``out`` may not alias ``a`` or ``b``)."""
+    aw, ax, ay, az = a[0], a[1], a[2], a[3]
+    bw, bx, by, bz = b[0], b[1], b[2], b[3]
+    out[0] = aw * bw - ax * bx - ay * by - az * bz
+    out[1] = aw * bx + ax * bw + ay * bz - az * by
+    out[2] = aw * by - ax * bz + ay * bw + az * bx
+    out[3] = aw * bz + ax * by - ay * bx + az * bw
+
+
+@njit(cache=True, inline="always")
+def _norm3(x: float, y: float, z: float) -> float:
+    return math.sqrt(x * x + y * y + z * z)
+
+
+@njit(cache=True, inline="always")
+def _matrix(q, m) -> None:
+    """The rotation matrix of ``q`` normalised (``rotations.to_matrix``) into ``m`` (3, 3)."""
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    n = max(n, _EPS)
+    w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+    m[0, 0] = w * w + x * x - y * y - z * z
+    m[0, 1] = 2.0 * (x * y - w * z)
+    m[0, 2] = 2.0 * (x * z + w * y)
+    m[1, 0] = 2.0 * (x * y + w * z)
+    m[1, 1] = w * w - x * x + y * y - z * z
+    m[1, 2] = 2.0 * (y * z - w * x)
+    m[2, 0] = 2.0 * (x * z - w * y)
+    m[2, 1] = 2.0 * (y * z + w * x)
+    m[2, 2] = w * w - x * x - y * y + z * z
+
+
+@njit(cache=True, inline="always")
+def _fk_row(parents, rotations, positions, g_rot, g_pos) -> None:
+    """One pose's global rotations ``(J, 4)`` and positions ``(J, 3)`` into ``g_rot``, ``g_pos``."""
+    m = np.empty((3, 3))
+    for j in range(rotations.shape[0]):
+        p = parents[j]
+        if p < 0:
+            g_rot[j] = rotations[j]
+            g_pos[j] = positions[j]
+            continue
+        _qmul(g_rot[p], rotations[j], g_rot[j])
+        _matrix(g_rot[p], m)
+        t = positions[j]
+        for a in range(3):
+            g_pos[j, a] = g_pos[p, a] + m[a, 0] * t[0] + m[a, 1] * t[1] + m[a, 2] * t[2]
+
+
+@njit(cache=True)
+def forward_kinematics(parents, rotations, positions):
+    """Global rotations ``(N, J, 4)`` and positions ``(N, J, 3)`` of ``N`` poses from local
+    rotations ``(N, J, 4)`` and translations ``(N, J, 3)`` (parents before children)."""
+    n, joints = rotations.shape[0], rotations.shape[1]
+    g_rot = np.empty((n, joints, 4))
+    g_pos = np.empty((n, joints, 3))
+    for r in range(n):
+        _fk_row(parents, rotations[r], positions[r], g_rot[r], g_pos[r])
+    return g_rot, g_pos
+
+
+@njit(cache=True, inline="always")
+def _rest(offsets, pelvis, root, positions) -> None:
+    """``motion.rest_positions`` of one pose into ``positions`` ``(J, 3)``."""
+    positions[:] = offsets
+    positions[pelvis] = root
+
+
+@njit(cache=True, inline="always")
+def _yaw(g_pos, across) -> float:
+    """The heading (rad about +Y, 0 facing +Z) of one pose ``(J, 3)`` from the left-right axis of
+    hips and shoulders (``across``: left and right upper leg, left and right upper arm)."""
+    ul, ur, al, ar = across[0], across[1], across[2], across[3]
+    ax = (g_pos[ul, 0] - g_pos[ur, 0]) + (g_pos[al, 0] - g_pos[ar, 0])
+    az = (g_pos[ul, 2] - g_pos[ur, 2]) + (g_pos[al, 2] - g_pos[ar, 2])
+    return math.atan2(-az, ax)  # forward = across x up
+
+
+@njit(cache=True)
+def facing_yaw(g_pos, across):
+    """:func:`_yaw` of poses ``(N, J, 3)``."""
+    yaw = np.empty(g_pos.shape[0])
+    for r in range(g_pos.shape[0]):
+        yaw[r] = _yaw(g_pos[r], across)
+    return yaw
+
+
+@njit(cache=True, inline="always")
+def _wrap(angle: float) -> float:
+    """``features.wrap_angle``: into [-pi, pi)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@njit(cache=True)
+def encode_rows(joints, feet, heights, pelvis, rotations, pelvis_rot, g_pos, prev_g_pos, yaw, prev_yaw,
+                fps, contact_speed, size):
+    """``(N, size)`` float32 features (``features``' layout: root 4, rot6d, pos, vel, contact) of
+    poses given each one's previous pose (global positions and heading). ``pelvis_rot``: the
+    pelvis's global rotation ``(N, 4)``; ``joints``: the layout's joints; ``feet`` and
+    ``heights``: the contact joints and their heights."""
+    out = np.empty((rotations.shape[0], size), dtype=np.float32)
+    for r in range(rotations.shape[0]):
+        _features(joints, feet, heights, pelvis, rotations[r], pelvis_rot[r], g_pos[r], prev_g_pos[r], yaw[r],
+                  prev_yaw[r], fps, contact_speed, out[r])
+    return out
+
+
+@njit(cache=True)
+def encode_stream(parents, offsets, pelvis, across, joints, feet, heights, rotations, roots, last, last_yaw,
+                  fresh, fps, contact_speed, size):
+    """One streamed frame of ``P`` performers: forward kinematics, heading and
+    :func:`encode_rows`' features ``(P, size)``, each performer's previous pose from ``last``
+    ``(P, J, 3)`` and ``last_yaw`` (its own on a ``fresh`` one: zero velocities), which are then
+    updated to this frame in place (``fresh`` cleared)."""
+    n, n_joints = rotations.shape[0], rotations.shape[1]
+    out = np.empty((n, size), dtype=np.float32)
+    positions = np.empty((n_joints, 3))
+    g_rot = np.empty((n_joints, 4))
+    g_pos = np.empty((n_joints, 3))
+    for r in range(n):
+        _rest(offsets, pelvis, roots[r], positions)
+        _fk_row(parents, rotations[r], positions, g_rot, g_pos)
+        yaw = _yaw(g_pos, across)
+        if fresh[r]:
+            last[r] = g_pos
+            last_yaw[r] = yaw
+        _features(joints, feet, heights, pelvis, rotations[r], g_rot[pelvis], g_pos, last[r], yaw, last_yaw[r],
+                  fps, contact_speed, out[r])
+        last[r] = g_pos
+        last_yaw[r] = yaw
+        fresh[r] = False
+    return out
+
+
+@njit(cache=True, inline="always")
+def _features(joints, feet, heights, pelvis, rotations, pelvis_rot, g_pos, prev_g_pos, yaw, prev_yaw, fps,
+              contact_speed, out) -> None:
+    """One pose's features into ``out`` (see :func:`encode_rows`)."""
+    k = joints.shape[0]
+    m = np.empty((3, 3))
+    q = np.empty(4)
+    inv = np.empty(4)
+    rot6d, pos, vel, contact = 4, 4 + 6 * k, 4 + 9 * k, 4 + 12 * k
+    half = 0.5 * yaw
+    inv[0], inv[1], inv[2], inv[3] = math.cos(half), 0.0, -math.sin(half), 0.0
+    _matrix(inv, m)  # into the facing frame
+    gx, gz = g_pos[pelvis, 0], g_pos[pelvis, 2]
+    px, pz = prev_g_pos[pelvis, 0], prev_g_pos[pelvis, 2]
+    vx, vz = (gx - px) * fps, (gz - pz) * fps
+    out[0] = m[0, 0] * vx + m[0, 2] * vz
+    out[1] = m[2, 0] * vx + m[2, 2] * vz
+    out[2] = g_pos[pelvis, 1]
+    out[3] = _wrap(yaw - prev_yaw) * fps
+    for i in range(k):
+        j = joints[i]
+        if i == 0:  # the pelvis relative to the facing frame
+            _qmul(inv, pelvis_rot, q)
+        else:
+            q[:] = rotations[j]
+        _six(q, out, rot6d + 6 * i)
+        r0, r1, r2 = g_pos[j, 0] - gx, g_pos[j, 1], g_pos[j, 2] - gz
+        d0 = (g_pos[j, 0] - prev_g_pos[j, 0]) * fps
+        d1 = (g_pos[j, 1] - prev_g_pos[j, 1]) * fps
+        d2 = (g_pos[j, 2] - prev_g_pos[j, 2]) * fps
+        for a in range(3):
+            out[pos + 3 * i + a] = m[a, 0] * r0 + m[a, 1] * r1 + m[a, 2] * r2
+            out[vel + 3 * i + a] = m[a, 0] * d0 + m[a, 1] * d1 + m[a, 2] * d2
+    for i in range(feet.shape[0]):
+        f = feet[i]
+        speed = _norm3(g_pos[f, 0] - prev_g_pos[f, 0], g_pos[f, 1] - prev_g_pos[f, 1],
+                       g_pos[f, 2] - prev_g_pos[f, 2]) * fps
+        out[contact + i] = 1.0 if (g_pos[f, 1] < heights[i] and speed < contact_speed) else 0.0
+
+
+@njit(cache=True, inline="always")
+def _six(q, out, at) -> None:
+    """``rotations.to_6d``: the first two columns of ``q``'s matrix into ``out[at:at + 6]``."""
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    n = max(n, _EPS)
+    w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+    out[at] = w * w + x * x - y * y - z * z
+    out[at + 1] = 2.0 * (x * y + w * z)
+    out[at + 2] = 2.0 * (x * z - w * y)
+    out[at + 3] = 2.0 * (x * y - w * z)
+    out[at + 4] = w * w - x * x + y * y - z * z
+    out[at + 5] = 2.0 * (y * z + w * x)
+
+
+@njit(cache=True, inline="always")
+def _from_6d(d, at, q) -> None:
+    """``rotations.from_6d`` of ``d[at:at + 6]`` into ``q``: Gram-Schmidt to a matrix, then the
+    best-conditioned column of ``4 q q^T`` (Shepperd), ``w >= 0``, normalised."""
+    a0, a1, a2 = d[at], d[at + 1], d[at + 2]
+    b0, b1, b2 = d[at + 3], d[at + 4], d[at + 5]
+    na = max(math.sqrt(a0 * a0 + a1 * a1 + a2 * a2), _EPS)
+    x0, x1, x2 = a0 / na, a1 / na, a2 / na
+    dot = x0 * b0 + x1 * b1 + x2 * b2
+    b0, b1, b2 = b0 - dot * x0, b1 - dot * x1, b2 - dot * x2
+    nb = max(math.sqrt(b0 * b0 + b1 * b1 + b2 * b2), _EPS)
+    y0, y1, y2 = b0 / nb, b1 / nb, b2 / nb
+    z0, z1, z2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
+    # the matrix's columns are x, y, z: m[row, col]
+    m00, m01, m02 = x0, y0, z0
+    m10, m11, m12 = x1, y1, z1
+    m20, m21, m22 = x2, y2, z2
+    d0 = 1.0 + m00 + m11 + m22
+    d1 = 1.0 + m00 - m11 - m22
+    d2 = 1.0 - m00 + m11 - m22
+    d3 = 1.0 - m00 - m11 + m22
+    best, top = 0, d0
+    if d1 > top:
+        best, top = 1, d1
+    if d2 > top:
+        best, top = 2, d2
+    if d3 > top:
+        best = 3
+    if best == 0:
+        w, x, y, z = d0, m21 - m12, m02 - m20, m10 - m01
+    elif best == 1:
+        w, x, y, z = m21 - m12, d1, m01 + m10, m02 + m20
+    elif best == 2:
+        w, x, y, z = m02 - m20, m01 + m10, d2, m12 + m21
+    else:
+        w, x, y, z = m10 - m01, m02 + m20, m12 + m21, d3
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    n = max(math.sqrt(w * w + x * x + y * y + z * z), _EPS)
+    q[0], q[1], q[2], q[3] = w / n, x / n, y / n, z / n
+
+
+@njit(cache=True)
+def pose_rows(joints, pelvis, n_joints, features, yaw, ground):
+    """Local rotations ``(N, J, 4)`` and pelvis positions ``(N, 3)`` of decoded rows (``features``
+    ``(N, >= 4 + 6 * len(joints))``: root and rot6d blocks) placed at ``ground`` ``(N, 3)`` with
+    heading ``yaw`` ``(N,)``; joints outside ``joints`` stay the identity."""
+    n = features.shape[0]
+    rotations = np.empty((n, n_joints, 4))
+    root = np.empty((n, 3))
+    for r in range(n):
+        _pose(joints, pelvis, features[r], yaw[r], ground[r], rotations[r], root[r])
+    return rotations, root
+
+
+@njit(cache=True)
+def decode_stream(joints, pelvis, n_joints, features, yaw, ground, fresh, fps):
+    """One streamed frame of ``P`` performers: each one's heading ``yaw`` ``(P,)`` and ground point
+    ``ground`` ``(P, 3)`` integrated in place by its root block's yaw rate, then its velocity in
+    the new facing frame (a ``fresh`` one stays where it was placed; ``fresh`` cleared), and
+    :func:`pose_rows` there."""
+    n = features.shape[0]
+    rotations = np.empty((n, n_joints, 4))
+    root = np.empty((n, 3))
+    for r in range(n):
+        f = features[r]
+        if not fresh[r]:
+            yaw[r] += f[3] / fps
+            cos, sin = math.cos(yaw[r]), math.sin(yaw[r])
+            ground[r, 0] += (cos * f[0] + sin * f[1]) / fps
+            ground[r, 2] += (cos * f[1] - sin * f[0]) / fps
+        fresh[r] = False
+        _pose(joints, pelvis, f, yaw[r], ground[r], rotations[r], root[r])
+    return rotations, root
+
+
+@njit(cache=True, inline="always")
+def _pose(joints, pelvis, f, yaw, ground, rotations, root) -> None:
+    """One decoded row's local rotations ``(J, 4)`` and pelvis position ``(3,)``."""
+    local = np.empty(4)
+    turn = np.empty(4)
+    rotations[:] = 0.0
+    rotations[:, 0] = 1.0
+    for i in range(joints.shape[0]):
+        _from_6d(f, 4 + 6 * i, local)
+        if i == 0:
+            half = 0.5 * yaw
+            turn[0], turn[1], turn[2], turn[3] = math.cos(half), 0.0, math.sin(half), 0.0
+            _qmul(turn, local, rotations[pelvis])
+        else:
+            rotations[joints[i]] = local
+    root[0] = ground[0]
+    root[1] = ground[1] + f[2]
+    root[2] = ground[2]
+
+
+@njit(cache=True, inline="always")
+def _rotate(q, v, out) -> None:
+    """``rotations.rotate`` of one vector: ``out = R(q normalised) v`` (``out`` may alias ``v``)."""
+    n = max(math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]), _EPS)
+    w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+    v0, v1, v2 = v[0], v[1], v[2]
+    out[0] = (w * w + x * x - y * y - z * z) * v0 + 2.0 * (x * y - w * z) * v1 + 2.0 * (x * z + w * y) * v2
+    out[1] = 2.0 * (x * y + w * z) * v0 + (w * w - x * x + y * y - z * z) * v1 + 2.0 * (y * z - w * x) * v2
+    out[2] = 2.0 * (x * z - w * y) * v0 + 2.0 * (y * z + w * x) * v1 + (w * w - x * x - y * y + z * z) * v2
+
+
+@njit(cache=True, inline="always")
+def _between(u, v, q) -> None:
+    """``rotations.between``: the shortest arc taking direction ``u`` onto ``v``, into ``q``."""
+    nu = max(_norm3(u[0], u[1], u[2]), _EPS)
+    nv = max(_norm3(v[0], v[1], v[2]), _EPS)
+    u0, u1, u2 = u[0] / nu, u[1] / nu, u[2] / nu
+    v0, v1, v2 = v[0] / nv, v[1] / nv, v[2] / nv
+    w = 1.0 + u0 * v0 + u1 * v1 + u2 * v2
+    x, y, z = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    if w < 1e-9:  # 180 degrees: about an axis orthogonal to u (u x the least-used unit axis)
+        a0, a1, a2 = abs(u0), abs(u1), abs(u2)
+        if a0 <= a1 and a0 <= a2:
+            x, y, z = 0.0, u2, -u1
+        elif a1 <= a2:
+            x, y, z = -u2, 0.0, u0
+        else:
+            x, y, z = u1, -u0, 0.0
+    n = max(math.sqrt(w * w + x * x + y * y + z * z), _EPS)
+    q[0], q[1], q[2], q[3] = w / n, x / n, y / n, z / n
+
+
+@njit(cache=True, inline="always")
+def _unit_clip(x: float) -> float:
+    return min(max(x, -1.0), 1.0)
+
+
+@njit(cache=True)
+def lock_feet(parents, offsets, pelvis, hips, knees, ankles, toes, heights, rotations, roots, inputs,
+              last, last_out, last_root, back, target, landed, offset, heading, turn, glide, weight, locked,
+              axis, fps, speed, max_stretch, fade, clearance, anchor_root, anchor_stretch, glide_rate, near,
+              down_height, anchor_ease, eps):
+    """:class:`~motion_style_ros.core.foot_lock.FootLock`'s frame (see its module for what each
+    step does and why): the output's local rotations ``(P, J, 4)`` and roots ``(P, 3)``, the lock's
+    state arrays updated in place; ``inputs`` ``(P, 2, 3)``: the input's ankles."""
+    n, n_joints = rotations.shape[0], rotations.shape[1]
+    out = rotations.copy()
+    root = roots.copy()
+    positions = np.empty((n_joints, 3))
+    g_rot = np.empty((n, n_joints, 4))
+    g_pos = np.empty((n, n_joints, 3))
+    foot_turn = np.empty((n, 2))
+    goal = np.empty((n, 2, 3))
+    moved = np.zeros((n, 2), dtype=np.bool_)
+    was = locked.copy()
+    toe = np.empty(3)
+    any_moved = False
+    for r in range(n):
+        _rest(offsets, pelvis, roots[r], positions)
+        _fk_row(parents, rotations[r], positions, g_rot[r], g_pos[r])
+        contact = np.zeros(2, dtype=np.bool_)
+        held = np.empty(2)
+        away = np.empty((2, 3))
+        for s in range(2):
+            a = ankles[s]
+            d0, d1, d2 = inputs[r, s, 0] - last[r, s, 0], inputs[r, s, 1] - last[r, s, 1], inputs[r, s, 2] - last[r, s, 2]
+            moving = _norm3(d0, d1, d2) * fps  # NaN on a first frame
+            last[r, s] = inputs[r, s]
+            contact[s] = inputs[r, s, 1] < heights[s] and moving < speed
+            start = contact[s] and not was[r, s]
+            if was[r, s] and contact[s]:  # a new lock glides on with the stylizer's ankle, less each frame
+                for c in range(3):
+                    target[r, s, c] += glide[r, s] * (g_pos[r, a, c] - last_out[r, s, c])
+            glide[r, s] = glide_rate if start else glide[r, s] * glide_rate
+            last_out[r, s] = g_pos[r, a]
+            if start:
+                target[r, s] = g_pos[r, a]
+                landed[r, s] = inputs[r, s]
+            _rotate(g_rot[r, a], toes[s], toe)
+            h = math.atan2(toe[0], toe[2])
+            if start:
+                heading[r, s] = h
+            held[s] = _wrap(heading[r, s] - h)
+            for c in range(3):
+                away[s, c] = g_pos[r, a, c] - target[r, s, c]
+        if anchor_root:
+            step = np.empty(3)
+            for c in range(3):
+                step[c] = root[r, c] - last_root[r, c]
+                if math.isnan(step[c]):  # a first frame: no step to hold back
+                    step[c] = 0.0
+            step[1] = 0.0
+            length = _norm3(step[0], step[1], step[2])
+            for c in range(3):
+                step[c] /= max(length, eps)
+            want = 0.0
+            for s in range(2):
+                ahead = np.empty(3)
+                for c in range(3):
+                    ahead[c] = away[s, c] - (inputs[r, s, c] - landed[r, s, c])
+                reach = _norm3(ahead[0], ahead[1], ahead[2])
+                down = was[r, s] and reach > anchor_stretch and g_pos[r, ankles[s], 1] < heights[s] + down_height
+                if down:
+                    scale = 1.0 - anchor_stretch / max(reach, eps)
+                    want = max(want, scale * (ahead[0] * step[0] + ahead[1] * step[1] + ahead[2] * step[2]))
+            back[r] = min(back[r] + anchor_ease * (want - back[r]), length)
+            for c in range(3):
+                shift = -step[c] * back[r]
+                root[r, c] += shift
+                for s in range(2):
+                    g_pos[r, hips[s], c] += shift
+                    g_pos[r, knees[s], c] += shift
+                    g_pos[r, ankles[s], c] += shift
+                    away[s, c] += shift
+        last_root[r] = root[r]
+        for s in range(2):
+            a = ankles[s]
+            reach = _norm3(away[s, 0], away[s, 1], away[s, 2])
+            if was[r, s] and reach > max_stretch:  # the leash
+                for c in range(3):
+                    target[r, s, c] += away[s, c] * (1.0 - max_stretch / max(reach, eps))
+            if was[r, s] and not contact[s]:  # released: the correction then fades out
+                for c in range(3):
+                    offset[r, s, c] = target[r, s, c] - g_pos[r, a, c]
+                turn[r, s] = held[s]
+            locked[r, s] = contact[s]
+            weight[r, s] = 1.0 if contact[s] else max(weight[r, s] - fade, 0.0)
+            x = min(max(weight[r, s], 0.0), 1.0)
+            eased = x * x * (3.0 - 2.0 * x)  # easing.smoothstep
+            for c in range(3):
+                goal[r, s, c] = target[r, s, c] if contact[s] else g_pos[r, a, c] + eased * offset[r, s, c]
+            if clearance and not contact[s]:
+                goal[r, s, 1] = max(goal[r, s, 1], inputs[r, s, 1])
+            foot_turn[r, s] = held[s] if contact[s] else eased * turn[r, s]
+            gap = _norm3(goal[r, s, 0] - g_pos[r, a, 0], goal[r, s, 1] - g_pos[r, a, 1], goal[r, s, 2] - g_pos[r, a, 2])
+            moved[r, s] = gap > near or abs(foot_turn[r, s]) > near
+            any_moved = any_moved or moved[r, s]
+    if not any_moved:
+        return out, root
+    u, v, bent, swing, q, tmp, upper, lower, foot = (np.empty(3), np.empty(3), np.empty(3), np.empty(4),
+                                                      np.empty(4), np.empty(4), np.empty(4), np.empty(4),
+                                                      np.empty(4))
+    for r in range(n):
+        for s in range(2):
+            hip, knee, ankle = hips[s], knees[s], ankles[s]
+            # two-bone IK: bend the knee to the goal's distance, then swing the hip onto the goal
+            for c in range(3):
+                u[c] = g_pos[r, hip, c] - g_pos[r, knee, c]
+                v[c] = g_pos[r, ankle, c] - g_pos[r, knee, c]
+            a, b = _norm3(u[0], u[1], u[2]), _norm3(v[0], v[1], v[2])
+            k0, k1, k2 = u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]
+            size = _norm3(k0, k1, k2)
+            if size > 1e-6 * a * b:  # the last good knee axis is kept for a straight leg
+                d = max(size, eps)
+                axis[r, s, 0], axis[r, s, 1], axis[r, s, 2] = k0 / d, k1 / d, k2 / d
+            known = axis[r, s, 0] != 0.0 or axis[r, s, 1] != 0.0 or axis[r, s, 2] != 0.0
+            to_goal = _norm3(goal[r, s, 0] - g_pos[r, hip, 0], goal[r, s, 1] - g_pos[r, hip, 1],
+                             goal[r, s, 2] - g_pos[r, hip, 2])
+            c_len = min(max(to_goal, abs(a - b) + 1e-4), a + b - 1e-4)
+            now = math.acos(_unit_clip((u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / max(a * b, eps)))
+            wanted = math.acos(_unit_clip((a * a + b * b - c_len * c_len) / max(2 * a * b, eps)))
+            half = 0.5 * (wanted - now if known else 0.0)
+            sin = math.sin(half)
+            q[0], q[1], q[2], q[3] = math.cos(half), sin * axis[r, s, 0], sin * axis[r, s, 1], sin * axis[r, s, 2]
+            _rotate(q, v, bent)
+            for c in range(3):
+                bent[c] += g_pos[r, knee, c] - g_pos[r, hip, c]  # the bent ankle, from the hip
+                u[c] = goal[r, s, c] - g_pos[r, hip, c]
+            _between(bent, u, swing)
+            _qmul(swing, g_rot[r, hip], upper)
+            _qmul(q, g_rot[r, knee], tmp)
+            _qmul(swing, tmp, lower)
+            half = 0.5 * foot_turn[r, s]
+            tmp[0], tmp[1], tmp[2], tmp[3] = math.cos(half), 0.0, math.sin(half), 0.0
+            _qmul(tmp, g_rot[r, ankle], foot)
+            if not moved[r, s]:
+                continue
+            # local = the parent's world rotation's inverse times the world rotation
+            _local(g_rot[r, parents[hip]], upper, out[r, hip])
+            _local(upper, lower, out[r, knee])
+            _local(lower, foot, out[r, ankle])
+    return out, root
+
+
+@njit(cache=True, inline="always")
+def _local(parent, world, out) -> None:
+    """``out = conjugate(parent) * world``."""
+    pw, px, py, pz = parent[0], -parent[1], -parent[2], -parent[3]
+    bw, bx, by, bz = world[0], world[1], world[2], world[3]
+    out[0] = pw * bw - px * bx - py * by - pz * bz
+    out[1] = pw * bx + px * bw + py * bz - pz * by
+    out[2] = pw * by - px * bz + py * bw + pz * bx
+    out[3] = pw * bz + px * by - py * bx + pz * bw
+
+
+@njit(cache=True)
+def add_arm_moments(rotations, positions, joints, upper, lower, hang_cos, live, second, first, count) -> None:
+    """:func:`~motion_style_ros.core.conform.arm_moments` of one streamed frame added in place to
+    the moments of the ``live`` performers: ``second`` ``(P, K, 9, 9)``, ``first`` ``(P, K, 9)``
+    and ``count`` ``(P, K)`` of the arm joints ``joints`` (the left arm's then the right's, ``K``
+    in all), counting an arm's joints on a frame where it hangs (its upper arm ``upper[side]`` to
+    ``lower[side]`` within the angle whose cosine is ``hang_cos`` of straight down, from the
+    global ``positions``)."""
+    per_arm = joints.shape[0] // 2
+    m = np.empty((3, 3))
+    for r in range(rotations.shape[0]):
+        if not live[r]:
+            continue
+        for side in range(2):
+            b0 = positions[r, lower[side], 0] - positions[r, upper[side], 0]
+            b1 = positions[r, lower[side], 1] - positions[r, upper[side], 1]
+            b2 = positions[r, lower[side], 2] - positions[r, upper[side], 2]
+            if not -b1 > hang_cos * max(_norm3(b0, b1, b2), 1e-9):
+                continue
+            for i in range(side * per_arm, (side + 1) * per_arm):
+                _matrix(rotations[r, joints[i]], m)
+                v = m.ravel()
+                for a in range(9):
+                    first[r, i, a] += v[a]
+                    for b in range(9):
+                        second[r, i, a, b] += v[a] * v[b]
+                count[r, i] += 1.0
+
+
+@njit(cache=True)
+def stand(contact, sides, columns, frame, hold, ease, still, weight, output, features):
+    """:class:`~motion_style_ros.core.standing.Standing`'s frame: the model's output rows ``(P, >=
+    4)`` as float64 with the root motion (``columns``) of performers standing on both feet
+    eased into that of ``features`` ``(P, F)``; ``still`` and ``weight`` ``(P,)`` updated in place.
+    ``contact``: the features' first contact column; ``sides`` ``(feet, 2)``: each foot's side."""
+    out = output.astype(np.float64)
+    for r in range(out.shape[0]):
+        left = right = 0.0
+        for i in range(sides.shape[0]):
+            if features[r, contact + i] > 0.5:
+                left += sides[i, 0]
+                right += sides[i, 1]
+        still[r] = still[r] + frame if min(left, right) > 0.0 else 0.0
+        step = ease if still[r] >= hold - 1e-9 else -ease
+        weight[r] = min(max(weight[r] + step, 0.0), 1.0)
+        x = min(max(weight[r], 0.0), 1.0)
+        w = x * x * (3.0 - 2.0 * x)  # easing.smoothstep
+        if w == 0.0:
+            continue
+        for c in columns:
+            out[r, c] = (1.0 - w) * out[r, c] + w * features[r, c]
+    return out
+
+
+@njit(cache=True)
+def follow_ground(ankles, last, offset, fps, speed, height, down, up) -> None:
+    """:class:`~motion_style_ros.core.conform.StreamGround`'s frame: each performer's ``offset``
+    ``(P,)`` moved towards the height of its lower still ankle (slower than ``speed``; ``ankles``
+    ``(P, 2, 3)``, ``last`` the previous frame's, NaN after a start) above ``height``, at rate
+    ``down`` when lower and ``up`` when higher; ``last`` becomes ``ankles``."""
+    for r in range(ankles.shape[0]):
+        lowest = np.inf
+        for s in range(2):
+            moved = _norm3(ankles[r, s, 0] - last[r, s, 0], ankles[r, s, 1] - last[r, s, 1],
+                           ankles[r, s, 2] - last[r, s, 2])
+            if moved * fps < speed:  # NaN on a first frame: not still
+                lowest = min(lowest, ankles[r, s, 1])
+            last[r, s] = ankles[r, s]
+        if lowest == np.inf:
+            continue
+        error = (lowest - height) - offset[r]
+        offset[r] += (down if error < 0.0 else up) * error
