@@ -107,6 +107,7 @@ ROLL_EVIDENCE = (40.0, 55.0)
 # of it drifted with the motion for seconds (swordplay, punches) while the whole clip's did not.
 UNROLLED = ("Hand_L", "Hand_R")
 RESTART_DEGREES = 10.0  # first measured rolls this far off: applied at once, the stylizer's memory reset
+_RESTART = float(np.radians(RESTART_DEGREES))
 ROLL_MIN_FRAMES = 1  # hanging-arm frames a chain needs before its rolls are estimated
 # With fewer hanging-arm frames than this, a chain is rolled only on evidence above the ramp's top
 # (all or nothing): a Xia jump's first 3 frames reached its middle (25 deg, undone 3 frames later).
@@ -235,28 +236,18 @@ def arm_moments(rotations: np.ndarray, hang: np.ndarray, joints: list[int]
             w.sum(axis=0))
 
 
-def roll_quaternions(angles: np.ndarray) -> np.ndarray:
-    """Quaternions of rolls about the bone axis (local X) by ``angles``."""
-    half = 0.5 * np.asarray(angles, dtype=np.float64)
-    q = np.zeros(half.shape + (4,))
-    q[..., 0], q[..., 1] = np.cos(half), np.sin(half)
-    return q
-
-
 def apply_rolls(rotations: np.ndarray, joints: list[int], angles: np.ndarray, undo: bool = False
                 ) -> np.ndarray:
     """``rotations`` ``(..., J, 4)`` with the arm joints' frames rolled by ``angles`` ``(..., 8)``
     (each joint's local rotation turned by its parent's inverse roll on the left and its own on
     the right; positions do not move). ``undo`` turns conformed rotations back."""
-    out = rotations.copy()
-    roll = roll_quaternions(angles if undo else -angles)  # the inverse rolls when conforming
-    n = len(CHAINS[0])
-    for i, j in enumerate(joints):
-        q = rot.multiply(out[..., j, :], rot.conjugate(roll[..., i, :]))
-        if i % n:
-            q = rot.multiply(roll[..., i - 1, :], q)
-        out[..., j, :] = q
-    return out
+    lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
+    out = kernels.roll_rows(np.ascontiguousarray(rotations, dtype=np.float64).reshape(-1, n_joints, 4),
+                            np.asarray(joints, dtype=np.int64),
+                            np.ascontiguousarray(np.broadcast_to(angles, lead + (len(joints),)),
+                                                 dtype=np.float64).reshape(-1, len(joints)),
+                            len(CHAINS[0]), undo)
+    return out.reshape(rotations.shape)
 
 
 def clip_rolls(motion: Motion, stats: dict[str, np.ndarray]) -> np.ndarray:
@@ -305,7 +296,7 @@ class StreamRolls:
         self._second = np.zeros((performers, n, 9, 9))
         self._first = np.zeros((performers, n, 9))
         self._count = np.zeros((performers, n))
-        self.frames = np.zeros(performers, dtype=int)  # model frames seen
+        self.frames = np.zeros(performers, dtype=np.int64)  # model frames seen
         self.target = np.zeros((performers, n))
         self.angles = np.zeros((performers, n))
         self.frozen = np.zeros(performers, dtype=bool)
@@ -341,22 +332,14 @@ class StreamRolls:
         kernels.add_arm_moments(np.ascontiguousarray(rotations, dtype=np.float64),
                                 np.ascontiguousarray(positions, dtype=np.float64), self._joints, upper, lower,
                                 _HANG_COS, live, self._second, self._first, self._count)
-        self.frames[live] += 1
-        n = self.frames
         # every frame while the first few hanging-arm frames come in (until the rig is measured),
         # then every solve_seconds, every second after
-        early = n <= self._settle
-        few = self._count[:, ::len(CHAINS[0])].min(axis=1) <= ROLL_SURE_FRAMES
-        first = early & ~self._restarted & few
-        due = live & ((np.where(early, n % self._every, n % self._late) == 0) | first)
+        due = kernels.rolls_due(live, self.frames, self._count, len(CHAINS[0]), self._restarted, self._settle,
+                                self._every, self._late, ROLL_SURE_FRAMES)
         if due.any():
             self.target[due] = self.model.solve(self._second[due], self._first[due], self._count[due])
-        turn = np.angle(np.exp(1j * (self.target - self.angles)))  # the short way round
-        measured = (due & ~self._restarted & (n <= self._settle)
-                    & (np.abs(turn).max(axis=-1) >= np.radians(RESTART_DEGREES)))
-        self._restarted |= measured
-        gain = np.where(measured, 1.0, self._gain)[:, None]
-        self.angles = np.where(live[:, None], self.angles + gain * turn, self.angles)
+        measured = kernels.ease_rolls(live, due, self.frames, self._settle, self._restarted, self.target,
+                                      self.angles, self._gain, _RESTART)
         return measured
 
     def hanging_frames(self, performer: int) -> np.ndarray:

@@ -312,10 +312,8 @@ class StreamDecoder:
     def pull(self, ground: np.ndarray, yaw: np.ndarray, gain: float) -> None:
         """Move every performer's ground point and heading the fraction ``gain`` of the way towards
         ``ground`` and ``yaw`` (bounds the drift of an integrated trajectory from a live one)."""
-        go = ~self._fresh
-        target = np.asarray(ground, dtype=np.float64)[go] * _GROUND
-        self._ground[go] += gain * (target - self._ground[go])
-        self._yaw[go] += gain * wrap_angle(np.asarray(yaw)[go] - self._yaw[go])
+        kernels.pull_stream(self._ground, self._yaw, np.ascontiguousarray(ground, dtype=np.float64),
+                            np.ascontiguousarray(yaw, dtype=np.float64), self._fresh, float(gain))
 
     def move(self, offset: np.ndarray) -> None:
         """Move every performer's ground point by ``offset`` ``(P, 3)`` (its horizontal part): the

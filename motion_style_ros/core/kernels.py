@@ -575,3 +575,220 @@ def follow_ground(ankles, last, offset, fps, speed, height, down, up) -> None:
             continue
         error = (lowest - height) - offset[r]
         offset[r] += (down if error < 0.0 else up) * error
+
+
+@njit(cache=True, inline="always")
+def _stance(root_velocity, leg_velocity, scale, min_speed, residual_fraction):
+    """One frame's least-squares sums ``(-v . l, l . l)`` of its stance foot (the contact point
+    whose world velocity at this ``scale`` is least; see ``proportions._stance_sums``), or zeros
+    where no foot is planted: horizontal root velocity ``(2,)``, contact points' ``(K, 2)``."""
+    best, foot = np.inf, 0
+    for k in range(leg_velocity.shape[0]):
+        w0 = root_velocity[0] + scale * leg_velocity[k, 0]
+        w1 = root_velocity[1] + scale * leg_velocity[k, 1]
+        moving = w0 * w0 + w1 * w1
+        if moving < best:
+            best, foot = moving, k
+    l0, l1 = leg_velocity[foot, 0], leg_velocity[foot, 1]
+    square = l0 * l0 + l1 * l1
+    speed = math.sqrt(square)
+    if speed > min_speed and math.sqrt(best) < residual_fraction * scale * speed:
+        return -(root_velocity[0] * l0 + root_velocity[1] * l1), square
+    return 0.0, 0.0
+
+
+@njit(cache=True)
+def stance_rows(root_velocity, leg_velocity, scale, min_speed, residual_fraction):
+    """:func:`_stance` of frames: ``(N, 2)``, ``(N, K, 2)``, ``(N,)`` -> the sums ``(N,)`` twice."""
+    n = root_velocity.shape[0]
+    cross, square = np.empty(n), np.empty(n)
+    for r in range(n):
+        cross[r], square[r] = _stance(root_velocity[r], leg_velocity[r], scale[r], min_speed, residual_fraction)
+    return cross, square
+
+
+@njit(cache=True)
+def observe_scale(relative_points, relative, step, frozen, measured_before, cross, square, target, scale, fps,
+                  reference, prior, low, high, min_speed, residual_fraction, evidence, off, gain):
+    """:meth:`~motion_style_ros.core.proportions.StreamScale.observe`'s frame, the state arrays
+    updated in place: ``relative_points`` ``(P, K, 3)`` the contact points relative to the pelvis,
+    ``relative`` ``(P, K, 2)`` the last frame's (horizontal; NaN after a start), ``step`` ``(P, 3)``
+    the root's last displacement; the sums ``cross``, ``square``, the estimate ``target`` and the
+    applied ``scale`` ``(P,)``. Returns the performers whose size has just been measured."""
+    n, k = relative_points.shape[0], relative_points.shape[1]
+    have = np.zeros(n, dtype=np.bool_)
+    for r in range(n):
+        have[r] = not (math.isnan(relative[r, 0, 0]) or math.isnan(step[r, 0]) or frozen[r])
+    root_v = np.empty(2)
+    leg_v = np.empty((k, 2))
+    measured = np.zeros(n, dtype=np.bool_)
+    for r in range(n):
+        if have[r]:
+            for a, c in ((0, 0), (1, 2)):
+                root_v[a] = (0.0 if math.isnan(step[r, c]) else step[r, c]) * fps
+                for i in range(k):
+                    d = relative_points[r, i, c] - relative[r, i, a]
+                    leg_v[i, a] = (0.0 if math.isnan(d) else d) * fps
+            c_add, s_add = _stance(root_v, leg_v, target[r] * reference, min_speed, residual_fraction)
+            cross[r] += c_add
+            square[r] += s_add
+        if have.any() and not frozen[r]:  # proportions._estimate
+            ratio = (cross[r] + prior * reference) / (square[r] + prior) / reference
+            target[r] = min(max(ratio, low), high)
+        for i in range(k):
+            relative[r, i, 0] = relative_points[r, i, 0]
+            relative[r, i, 1] = relative_points[r, i, 2]
+        if frozen[r]:
+            continue
+        enough = square[r] >= evidence
+        measured[r] = not measured_before[r] and enough and abs(target[r] - scale[r]) >= off
+        measured_before[r] = measured_before[r] or enough
+        scale[r] += (1.0 if measured[r] else gain) * (target[r] - scale[r])
+    return measured
+
+
+@njit(cache=True)
+def rolls_due(live, frames, count, per_arm, restarted, settle, every, late, sure):
+    """Which performers' arm rolls :class:`~motion_style_ros.core.conform.StreamRolls` solves on
+    this frame (``frames`` ``(P,)`` counted in place for the ``live`` ones): every ``every``
+    frames for the first ``settle``, and every frame while an arm has hung in at most ``sure``
+    frames, until first measured (``restarted``); every ``late`` frames after."""
+    due = np.zeros(live.shape[0], dtype=np.bool_)
+    for r in range(live.shape[0]):
+        if not live[r]:
+            continue
+        frames[r] += 1
+        n = frames[r]
+        early = n <= settle
+        fewest = np.inf
+        for i in range(0, count.shape[1], per_arm):
+            fewest = min(fewest, count[r, i])
+        first = early and not restarted[r] and fewest <= sure
+        due[r] = (n % (every if early else late)) == 0 or first
+    return due
+
+
+@njit(cache=True)
+def ease_rolls(live, due, frames, settle, restarted, target, angles, gain, restart):
+    """The applied rolls ``angles`` ``(P, K)`` moved the short way towards ``target`` by ``gain``,
+    in place, for the ``live`` performers; at once for one whose rolls were first measured on this
+    frame ``restart`` (rad) or more off. Returns those (``restarted`` updated)."""
+    measured = np.zeros(live.shape[0], dtype=np.bool_)
+    turn = np.empty(angles.shape[1])
+    for r in range(live.shape[0]):
+        largest = 0.0
+        for i in range(angles.shape[1]):
+            d = target[r, i] - angles[r, i]
+            turn[i] = math.atan2(math.sin(d), math.cos(d))
+            largest = max(largest, abs(turn[i]))
+        measured[r] = due[r] and not restarted[r] and frames[r] <= settle and largest >= restart
+        restarted[r] = restarted[r] or measured[r]
+        if live[r]:
+            g = 1.0 if measured[r] else gain
+            for i in range(angles.shape[1]):
+                angles[r, i] += g * turn[i]
+    return measured
+
+
+@njit(cache=True)
+def roll_rows(rotations, joints, angles, per_arm, undo):
+    """:func:`~motion_style_ros.core.conform.apply_rolls` of poses ``(N, J, 4)``: each arm joint's
+    local rotation (``joints``, ``per_arm`` to a chain) turned by its own roll's inverse on the
+    right and its chain parent's roll on the left (``angles`` ``(N, K)``; negated unless
+    ``undo``), a copy."""
+    out = rotations.copy()
+    roll = np.empty(4)
+    before = np.empty(4)
+    q = np.empty(4)
+    sign = 1.0 if undo else -1.0
+    for r in range(out.shape[0]):
+        for i in range(joints.shape[0]):
+            j = joints[i]
+            half = 0.5 * sign * angles[r, i]
+            roll[0], roll[1], roll[2], roll[3] = math.cos(half), -math.sin(half), 0.0, 0.0  # conjugated
+            _qmul(out[r, j], roll, q)
+            if i % per_arm:
+                half = 0.5 * sign * angles[r, i - 1]
+                before[0], before[1], before[2], before[3] = math.cos(half), math.sin(half), 0.0, 0.0
+                _qmul(before, q, out[r, j])
+            else:
+                out[r, j] = q
+    return out
+
+
+@njit(cache=True)
+def pull_stream(ground, yaw, to_ground, to_yaw, fresh, gain) -> None:
+    """Each performer's integrated ``ground`` point ``(P, 3)`` (horizontal) and heading ``yaw``
+    moved the fraction ``gain`` of the way towards ``to_ground`` and ``to_yaw`` (the short way
+    round), in place, except for a ``fresh`` one (placed, not integrated yet)."""
+    for r in range(ground.shape[0]):
+        if fresh[r]:
+            continue
+        ground[r, 0] += gain * (to_ground[r, 0] - ground[r, 0])
+        ground[r, 1] += gain * (0.0 - ground[r, 1])
+        ground[r, 2] += gain * (to_ground[r, 2] - ground[r, 2])
+        yaw[r] += gain * _wrap(to_yaw[r] - yaw[r])
+
+
+@njit(cache=True)
+def check_frame(rotations, roots, tolerance):
+    """A streamed frame's rotations ``(P, J, 4)`` normalised, and what is wrong with it: ``(0, ...)``
+    nothing; ``(1, performer, 0, 0.0)`` a non-finite number; ``(2, performer, joint, norm)`` a
+    quaternion whose norm is more than ``tolerance`` off 1."""
+    out = np.empty_like(rotations)
+    for r in range(rotations.shape[0]):
+        finite = math.isfinite(roots[r, 0]) and math.isfinite(roots[r, 1]) and math.isfinite(roots[r, 2])
+        for j in range(rotations.shape[1]):
+            for c in range(4):
+                finite = finite and math.isfinite(rotations[r, j, c])
+        if not finite:
+            return out, 1, r, 0, 0.0
+    for r in range(rotations.shape[0]):
+        for j in range(rotations.shape[1]):
+            q = rotations[r, j]
+            n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+            if abs(n - 1.0) > tolerance:
+                return out, 2, r, j, n
+            for c in range(4):
+                out[r, j, c] = q[c] / n
+    return out, 0, 0, 0, 0.0
+
+
+@njit(cache=True)
+def slerp_rows(a, b, t):
+    """``rotations.slerp`` of rows: quaternions ``(N, 4)`` twice, fractions ``(N,)``."""
+    out = np.empty_like(a)
+    for r in range(a.shape[0]):
+        dot = a[r, 0] * b[r, 0] + a[r, 1] * b[r, 1] + a[r, 2] * b[r, 2] + a[r, 3] * b[r, 3]
+        flip = -1.0 if dot < 0.0 else 1.0
+        theta = math.acos(min(max(abs(dot), -1.0), 1.0))
+        sin = math.sin(theta)
+        if sin < 1e-6:
+            wa, wb = 1.0 - t[r], t[r]
+        else:
+            wa, wb = math.sin((1.0 - t[r]) * theta) / sin, math.sin(t[r] * theta) / sin
+        n2 = 0.0
+        for c in range(4):
+            out[r, c] = wa * a[r, c] + wb * flip * b[r, c]
+            n2 += out[r, c] * out[r, c]
+        n = max(math.sqrt(n2), _EPS)
+        for c in range(4):
+            out[r, c] /= n
+    return out
+
+
+@njit(cache=True)
+def hermite_rotations(q0, r0, r1, b, cd):
+    """``q0 exp(b r0 + cd r1)`` of rows (``resample.Hermite``): quaternions ``(N, 4)`` and
+    rotation vectors ``(N, 3)`` twice."""
+    out = np.empty_like(q0)
+    e = np.empty(4)
+    for r in range(q0.shape[0]):
+        v0 = b * r0[r, 0] + cd * r1[r, 0]
+        v1 = b * r0[r, 1] + cd * r1[r, 1]
+        v2 = b * r0[r, 2] + cd * r1[r, 2]
+        angle = _norm3(v0, v1, v2)
+        scale = 0.5 if angle < 1e-9 else math.sin(0.5 * angle) / max(angle, 1e-12)  # rotations.exp
+        e[0], e[1], e[2], e[3] = math.cos(0.5 * angle), scale * v0, scale * v1, scale * v2
+        _qmul(q0[r], e, out[r])
+    return out

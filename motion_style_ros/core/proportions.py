@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion_style_ros.core import kernels
 from motion_style_ros.core.motion import Motion
 
 PRIOR_WEIGHT = 0.5  # (m/s)^2 frames: a few steps outweigh it
@@ -37,23 +38,12 @@ RESTART_OFF = 0.08  # a first estimate this far from the canonical size is appli
 
 def _stance_sums(root_velocity: np.ndarray, leg_velocity: np.ndarray, scale: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """The least-squares sums ``(-v . l, l . l)`` of each performer's stance foot for one frame:
-    ``root_velocity`` ``(P, 2)`` and ``leg_velocity`` ``(P, K, 2)`` of the contact points (ankles
-    and toes), horizontal m/s."""
-    world = root_velocity[:, None] + scale[:, None, None] * leg_velocity  # (P, K, 2)
-    rows = np.arange(len(world))
-    foot = np.argmin(np.add.reduce(world * world, axis=-1), axis=1)
-    leg, stance = leg_velocity[rows, foot], world[rows, foot]
-    square = np.add.reduce(leg * leg, axis=-1)
-    speed = np.sqrt(square)
-    residual = np.sqrt(np.add.reduce(stance * stance, axis=-1))
-    use = (speed > MIN_LEG_SPEED) & (residual < STANCE_RESIDUAL * scale * speed)
-    return np.where(use, -np.add.reduce(root_velocity * leg, axis=-1), 0.0), np.where(use, square, 0.0)
-
-
-def _finite(x: np.ndarray) -> np.ndarray:
-    """``x`` with NaN as 0 (np.nan_to_num's checks cost more than this on one frame)."""
-    return np.where(np.isnan(x), 0.0, x)
+    """The least-squares sums ``(-v . l, l . l)`` of each frame's stance foot: ``root_velocity``
+    ``(N, 2)`` and ``leg_velocity`` ``(N, K, 2)`` of the contact points (ankles and toes),
+    horizontal m/s (:func:`motion_style_ros.core.kernels.stance_rows`)."""
+    return kernels.stance_rows(np.ascontiguousarray(root_velocity, dtype=np.float64),
+                               np.ascontiguousarray(leg_velocity, dtype=np.float64),
+                               np.ascontiguousarray(scale, dtype=np.float64), MIN_LEG_SPEED, STANCE_RESIDUAL)
 
 
 def _estimate(cross: np.ndarray, square: np.ndarray, reference: float) -> np.ndarray:
@@ -148,23 +138,11 @@ class StreamScale:
         canonical one by :data:`RESTART_OFF` or more after :data:`RESTART_EVIDENCE` of leg motion:
         the estimate is applied at once, and a stylizer with a memory can forget the frames
         before (as for the arm rolls)."""
-        rel = relative_ankles[..., ::2]
-        have = ~np.isnan(self._relative[:, 0, 0]) & ~np.isnan(self._step[:, 0]) & ~self.frozen
-        if have.any():
-            cross, square = _stance_sums(_finite(self._step[:, ::2]) * self.fps,
-                                         _finite(rel - self._relative) * self.fps,
-                                         self.target * self.reference)
-            self._cross += np.where(have, cross, 0.0)
-            self._square += np.where(have, square, 0.0)
-            estimate = _estimate(self._cross, self._square, self.reference)
-            self.target = np.where(self.frozen, self.target, estimate)
-        self._relative = rel.copy()
-        measured = (~self.frozen & ~self._measured & (self._square >= RESTART_EVIDENCE)
-                    & (np.abs(self.target - self.scale) >= RESTART_OFF))
-        self._measured |= ~self.frozen & (self._square >= RESTART_EVIDENCE)
-        gain = np.where(measured, 1.0, self._gain)
-        self.scale = np.where(self.frozen, self.scale, self.scale + gain * (self.target - self.scale))
-        return measured
+        low, high = SCALE_RANGE
+        return kernels.observe_scale(
+            np.ascontiguousarray(relative_ankles, dtype=np.float64), self._relative, self._step, self.frozen,
+            self._measured, self._cross, self._square, self.target, self.scale, self.fps, self.reference,
+            PRIOR_WEIGHT, low, high, MIN_LEG_SPEED, STANCE_RESIDUAL, RESTART_EVIDENCE, RESTART_OFF, self._gain)
 
     def to_stream(self, positions: np.ndarray) -> np.ndarray:
         """Stylized root positions ``(P, 3)`` (canonical proportions) in the stream's world."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_style_ros.core import rotations as rot
+from motion_style_ros.core import kernels, rotations as rot
 from motion_style_ros.core.motion import Motion
 
 
@@ -62,7 +62,9 @@ class Hermite:
         s = min(max(float((t - self.t0) / self.span), 0.0), 1.0)  # every streamed output frame: no np.clip
         s2, s3 = s * s, s * s * s
         a, b, c, d = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2  # x0, m0, x1, m1
-        rotations = rot.multiply(self.q0, rot.exp(b * self.r0 + (c + d) * self.r1))
+        shape = self.q0.shape
+        rotations = kernels.hermite_rotations(self.q0.reshape(-1, 4), self.r0.reshape(-1, 3), self.r1.reshape(-1, 3),
+                                              b, c + d).reshape(shape)
         return rotations, a * self.p0 + b * self.v0 + c * self.p1 + d * (self.p1 - self.p0)
 
 

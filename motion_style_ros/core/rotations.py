@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion_style_ros.core import kernels
+
 _EPS = 1e-12
 
 
@@ -236,20 +238,15 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarray:
-    """Spherical interpolation along the short arc; ``t`` broadcasts over the leading axes."""
-    t = np.asarray(t, dtype=np.float64)
-    if t.ndim:
-        t = t[..., None]
-    dot = np.add.reduce(a * b, axis=-1, keepdims=True)
-    b = np.where(dot < 0, -b, b)
-    dot = np.abs(dot)
-    theta = np.arccos(np.clip(dot, -1.0, 1.0))
-    sin = np.sin(theta)
-    near = sin < 1e-6
-    safe = np.where(near, 1.0, sin)
-    wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
-    wb = np.where(near, t, np.sin(t * theta) / safe)
-    return normalize(wa * a + wb * b)
+    """Spherical interpolation along the short arc; ``t`` broadcasts over the leading axes
+    (:func:`motion_style_ros.core.kernels.slerp_rows`)."""
+    a, b, t = (np.asarray(x, dtype=np.float64) for x in (a, b, t))
+    lead = np.broadcast_shapes(a.shape[:-1], b.shape[:-1], t.shape)
+
+    def rows(x: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+        return np.ascontiguousarray(np.broadcast_to(x, shape)).reshape((-1,) + shape[len(lead):])
+
+    return kernels.slerp_rows(rows(a, lead + (4,)), rows(b, lead + (4,)), rows(t, lead)).reshape(lead + (4,))
 
 
 def log(q: np.ndarray) -> np.ndarray:

@@ -43,6 +43,7 @@ class Controls:
         self._alpha = np.ones(performers)
         self._from = self._target()
         self._progress = np.ones(performers)  # 1: blend done
+        self._settled: tuple[np.ndarray, np.ndarray] | None = None  # the inputs once every blend is done
 
     def style_index(self, style: str) -> int:
         if style not in self.styles:
@@ -85,19 +86,29 @@ class Controls:
         """Jump to the targets (a performer that starts afresh has nothing to blend from)."""
         self._from[which] = self._target()[which]
         self._progress[which] = 1.0
+        self._settled = None
 
     def advance(self, seconds: float) -> tuple[np.ndarray, np.ndarray]:
         """Move the blends on by ``seconds`` of stream time; the model's ``style`` ``(P, S)`` and
-        ``alpha`` ``(P, 1)`` float32 inputs for this step."""
+        ``alpha`` ``(P, 1)`` float32 inputs for this step (read-only: between changes, every step
+        gets the same arrays)."""
+        if self._settled is not None:
+            return self._settled
         step = np.inf if self.blend_seconds == 0 else seconds / self.blend_seconds
         self._progress = np.minimum(self._progress + step, 1.0)
         now = self._current()
-        return now[:, :-1].astype(np.float32), now[:, -1:].astype(np.float32)
+        inputs = now[:, :-1].astype(np.float32), now[:, -1:].astype(np.float32)
+        if (self._progress >= 1.0).all():
+            for a in inputs:
+                a.flags.writeable = False
+            self._settled = inputs
+        return inputs
 
     def _begin(self, which: slice | int) -> None:
         """Start a blend from the vector in use now (call before changing the target)."""
         self._from[which] = self._current()[which]
         self._progress[which] = 0.0
+        self._settled = None
 
     def _target(self) -> np.ndarray:
         eye = np.eye(len(self.styles))

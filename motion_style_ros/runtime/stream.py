@@ -58,7 +58,7 @@ from typing import Protocol
 
 import numpy as np
 
-from motion_style_ros.core import rotations as rot
+from motion_style_ros.core import kernels, rotations as rot
 from motion_style_ros.core.conform import ANKLES, ROLL_MIN_FRAMES, StreamGround, StreamRolls, conform_rolls
 from motion_style_ros.core.features import UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
@@ -426,21 +426,17 @@ class StreamSession:
                 f"{np.shape(root_positions)}; expected ({n}, {j}, 4) local quaternions (w, x, y, z) "
                 f"of the canonical skeleton's {j} joints and ({n}, 3) pelvis positions"
             )
-        if not (np.isfinite(q).all() and np.isfinite(p).all()):
-            bad = ~(np.isfinite(q).all(axis=(1, 2)) & np.isfinite(p).all(axis=1))
-            raise MotionStyleError(
-                f"performer {int(np.argmax(bad))}: NaN or infinite values in the frame"
-            )
-        q, p = q.astype(np.float64), p.astype(np.float64)
-        norm = rot.norm(q)
-        if np.abs(norm - 1.0).max() > QUATERNION_TOLERANCE:
-            off = np.abs(norm - 1.0) > QUATERNION_TOLERANCE
-            k, joint = np.argwhere(off)[0]
+        p = np.ascontiguousarray(p, dtype=np.float64)
+        q, problem, k, joint, norm = kernels.check_frame(np.ascontiguousarray(q, dtype=np.float64), p,
+                                                         QUATERNION_TOLERANCE)
+        if problem == 1:
+            raise MotionStyleError(f"performer {k}: NaN or infinite values in the frame")
+        if problem == 2:
             raise MotionStyleError(
                 f"performer {k}: rotation of {self.skeleton.names[joint]} has norm "
-                f"{norm[k, joint]:.3g}; expected unit quaternions (w, x, y, z)"
+                f"{norm:.3g}; expected unit quaternions (w, x, y, z)"
             )
-        return q / norm[..., None], p, single
+        return q, p, single
 
 
 def describe_calibration(calibration: dict) -> str:
