@@ -792,3 +792,29 @@ def hermite_rotations(q0, r0, r1, b, cd):
         e[0], e[1], e[2], e[3] = math.cos(0.5 * angle), scale * v0, scale * v1, scale * v2
         _qmul(q0[r], e, out[r])
     return out
+
+
+@njit(cache=True, inline="always")
+def _log_between(q0, q1, ratio, out) -> None:
+    """``ratio * rotations.log(conjugate(q0) * q1)``: the rotation vector from ``q0`` to ``q1``
+    (short arc), scaled, into ``out`` (3,)."""
+    q = np.empty(4)
+    _local(q0, q1, q)
+    n = max(math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]), _EPS)
+    sign = -1.0 if q[0] / n < 0.0 else 1.0
+    w, x, y, z = sign * q[0] / n, sign * q[1] / n, sign * q[2] / n, sign * q[3] / n
+    s = _norm3(x, y, z)
+    scale = 2.0 if s < 1e-9 else 2.0 * math.atan2(s, w) / max(s, 1e-12)
+    out[0], out[1], out[2] = ratio * scale * x, ratio * scale * y, ratio * scale * z
+
+
+@njit(cache=True)
+def hermite_tangents(q0, q1, qp, ratio):
+    """The rotation vectors of ``resample.Hermite``'s segment from ``q0`` to ``q1`` (rows ``(N,
+    4)``): to ``q1``, and ``-ratio`` times the one to the frame before, ``qp``, ``(N, 3)`` each."""
+    r1 = np.empty((q0.shape[0], 3))
+    r0 = np.empty((q0.shape[0], 3))
+    for r in range(q0.shape[0]):
+        _log_between(q0[r], q1[r], 1.0, r1[r])
+        _log_between(q0[r], qp[r], -ratio, r0[r])
+    return r1, r0

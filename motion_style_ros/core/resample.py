@@ -47,25 +47,28 @@ class Hermite:
     """
 
     def __init__(self, frames: list[tuple[float, np.ndarray, np.ndarray]]) -> None:
-        (self.t0, self.q0, self.p0), (t1, q1, self.p1) = frames[-2], frames[-1]
-        self.span = t1 - self.t0
-        inverse = rot.conjugate(self.q0)
-        self.r1 = rot.log(rot.multiply(inverse, q1))
+        (self.t0, q0, self.p0), (t1, q1, self.p1) = frames[-2], frames[-1]
+        self._shape, self.span = q0.shape, t1 - self.t0
+        self._q0 = _rows(q0)
         if len(frames) >= 3:
             tp, qp, pp = frames[-3]
             ratio = self.span / (self.t0 - tp)
-            self.r0, self.v0 = -ratio * rot.log(rot.multiply(inverse, qp)), ratio * (self.p0 - pp)
-        else:
-            self.r0, self.v0 = self.r1, self.p1 - self.p0
+            self._r1, self._r0 = kernels.hermite_tangents(self._q0, _rows(q1), _rows(qp), ratio)
+            self.v0 = ratio * (self.p0 - pp)
+        else:  # both tangents the difference: linear
+            self._r1 = self._r0 = kernels.hermite_tangents(self._q0, _rows(q1), _rows(q1), 0.0)[0]
+            self.v0 = self.p1 - self.p0
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         s = min(max(float((t - self.t0) / self.span), 0.0), 1.0)  # every streamed output frame: no np.clip
         s2, s3 = s * s, s * s * s
         a, b, c, d = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2  # x0, m0, x1, m1
-        shape = self.q0.shape
-        rotations = kernels.hermite_rotations(self.q0.reshape(-1, 4), self.r0.reshape(-1, 3), self.r1.reshape(-1, 3),
-                                              b, c + d).reshape(shape)
+        rotations = kernels.hermite_rotations(self._q0, self._r0, self._r1, b, c + d).reshape(self._shape)
         return rotations, a * self.p0 + b * self.v0 + c * self.p1 + d * (self.p1 - self.p0)
+
+
+def _rows(q: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(q, dtype=np.float64).reshape(-1, 4)
 
 
 def hermite(frames: list[tuple[float, np.ndarray, np.ndarray]], t: float) -> tuple[np.ndarray, np.ndarray]:
