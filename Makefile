@@ -20,6 +20,7 @@ venv: $(STAMP)
 $(STAMP): requirements-dev.txt requirements-test.txt requirements-ros-wheels.txt setup.py setup.cfg package.xml
 	@test -x $(VENV)/bin/python || { echo "creating $(VENV) with $(PYTHON)"; $(PYTHON) -m venv $(VENV); }
 	$(VENV)/bin/python -m pip install -r requirements-dev.txt -e .
+	$(VENV)/bin/motion-style warmup
 	@touch $@
 
 # The live demo needs no dataset: a synthetic performer streams through the shipped model.
@@ -37,6 +38,7 @@ $(RT_STAMP): requirements-test.txt requirements-ros-wheels.txt setup.py setup.cf
 	$(RT_VENV)/bin/python -m pip install -r requirements-test.txt -r requirements-ros-wheels.txt .
 	@if $(RT_VENV)/bin/python -c "import torch" 2>/dev/null; then \
 		echo "$(RT_VENV) has torch: the runtime's tests must run without it"; exit 1; fi
+	$(RT_VENV)/bin/motion-style warmup
 	@touch $@
 
 test-runtime: $(RT_STAMP)

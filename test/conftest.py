@@ -15,6 +15,15 @@ os.environ.pop("ROS_STATIC_PEERS", None)
 os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def stream_kernels():
+    """The compiled kernels ready (numba's disk cache written) before any test starts a node
+    process: one that compiled them itself would spend its start-up timeouts on it."""
+    from motion_style_ros.runtime.warmup import warm_kernels
+
+    warm_kernels()
+
+
 @pytest.fixture(scope="module")
 def ros_env(tmp_path_factory):
     """Environment for a subprocess that uses rclpy: pass it as ``subprocess.run(..., env=ros_env)``.

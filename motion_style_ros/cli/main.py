@@ -43,6 +43,7 @@ SUBCOMMANDS = (
     "eval",      # metrics and baselines
     "render",    # plots / videos of motion
     "bench",     # latency and throughput
+    "warmup",    # compile the stream kernels ahead of the first node start
     "style",     # enrol styles of your own (style bank)
     "robot",     # stylized motion on a humanoid robot (URDF)
     "version",   # print versions

@@ -242,10 +242,10 @@ def apply_rolls(rotations: np.ndarray, joints: list[int], angles: np.ndarray, un
     (each joint's local rotation turned by its parent's inverse roll on the left and its own on
     the right; positions do not move). ``undo`` turns conformed rotations back."""
     lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
-    out = kernels.roll_rows(np.ascontiguousarray(rotations, dtype=np.float64).reshape(-1, n_joints, 4),
+    out = kernels.roll_rows(np.require(rotations, np.float64, "CW").reshape(-1, n_joints, 4),
                             np.asarray(joints, dtype=np.int64),
-                            np.ascontiguousarray(np.broadcast_to(angles, lead + (len(joints),)),
-                                                 dtype=np.float64).reshape(-1, len(joints)),
+                            np.require(np.broadcast_to(angles, lead + (len(joints),)), np.float64,
+                                       "CW").reshape(-1, len(joints)),
                             len(CHAINS[0]), undo)
     return out.reshape(rotations.shape)
 
@@ -329,8 +329,8 @@ class StreamRolls:
         if not live.any():
             return measured
         upper, lower = _arm_bones(self.skeleton)
-        kernels.add_arm_moments(np.ascontiguousarray(rotations, dtype=np.float64),
-                                np.ascontiguousarray(positions, dtype=np.float64), self._joints, upper, lower,
+        kernels.add_arm_moments(np.require(rotations, np.float64, "CW"),
+                                np.require(positions, np.float64, "CW"), self._joints, upper, lower,
                                 _HANG_COS, live, self._second, self._first, self._count)
         # every frame while the first few hanging-arm frames come in (until the rig is measured),
         # then every solve_seconds, every second after
@@ -380,6 +380,6 @@ class StreamGround:
     def update(self, ankles: np.ndarray) -> np.ndarray:
         """Follow one frame's ankle world positions ``(P, 2, 3)`` (the stream's own, not moved);
         returns the offsets ``(P,)``."""
-        kernels.follow_ground(np.ascontiguousarray(ankles, dtype=np.float64), self._last, self.offset, self._fps,
+        kernels.follow_ground(np.require(ankles, np.float64, "CW"), self._last, self.offset, self._fps,
                               float(self.speed), self.ankle_height, self._down, self._up)
         return self.offset

@@ -89,7 +89,7 @@ def _check_canonical(sk: Skeleton) -> None:
 def facing_yaw(global_positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     """Heading of the body (radians about +Y, 0 = facing +Z) from hips and shoulders, per frame."""
     lead = global_positions.shape[:-2]
-    rows = np.ascontiguousarray(global_positions, dtype=np.float64).reshape((-1,) + global_positions.shape[-2:])
+    rows = np.require(global_positions, np.float64, "CW").reshape((-1,) + global_positions.shape[-2:])
     return kernels.facing_yaw(rows, _index(skeleton, _ACROSS)).reshape(lead)
 
 
@@ -106,7 +106,7 @@ def _parents(skeleton: Skeleton) -> np.ndarray:
 
 @functools.cache
 def _offsets(skeleton: Skeleton) -> np.ndarray:
-    return np.ascontiguousarray(skeleton.offsets, dtype=np.float64)
+    return np.require(skeleton.offsets, np.float64, "CW")
 
 
 @functools.cache
@@ -171,7 +171,7 @@ def _encode_frames(
     lead, n_joints = yaw.shape, rotations.shape[-2]
 
     def rows(a: np.ndarray, *shape: int) -> np.ndarray:
-        return np.ascontiguousarray(a, dtype=np.float64).reshape((-1, *shape))
+        return np.require(a, np.float64, "CW").reshape((-1, *shape))
 
     out = kernels.encode_rows(
         lay.index, _feet(sk), _contact_heights(sk), sk.pelvis, rows(rotations, n_joints, 4),
@@ -209,9 +209,9 @@ def _pose(
     :class:`StreamDecoder`. Joints above the pelvis (the canonical static root) stay identity."""
     lead = f.shape[:-1]
     rotations, root_pos = kernels.pose_rows(
-        lay.index, sk.pelvis, sk.n_joints, np.ascontiguousarray(f, dtype=np.float64).reshape(-1, f.shape[-1]),
-        np.ascontiguousarray(yaw, dtype=np.float64).reshape(-1),
-        np.ascontiguousarray(ground, dtype=np.float64).reshape(-1, 3))
+        lay.index, sk.pelvis, sk.n_joints, np.require(f, np.float64, "CW").reshape(-1, f.shape[-1]),
+        np.require(yaw, np.float64, "CW").reshape(-1),
+        np.require(ground, np.float64, "CW").reshape(-1, 3))
     return rotations.reshape(lead + (sk.n_joints, 4)), root_pos.reshape(lead + (3,))
 
 
@@ -269,7 +269,7 @@ class StreamEncoder:
         sk, lay = self.skeleton, self._layout
         return kernels.encode_stream(
             _parents(sk), _offsets(sk), sk.pelvis, _index(sk, _ACROSS), lay.index, _feet(sk), _contact_heights(sk),
-            np.ascontiguousarray(rotations, dtype=np.float64), np.ascontiguousarray(root_positions, dtype=np.float64),
+            np.require(rotations, np.float64, "CW"), np.require(root_positions, np.float64, "CW"),
             self._last, self._yaw, self._fresh, float(self.fps), CONTACT_SPEED, lay.size)
 
     @property
@@ -312,8 +312,8 @@ class StreamDecoder:
     def pull(self, ground: np.ndarray, yaw: np.ndarray, gain: float) -> None:
         """Move every performer's ground point and heading the fraction ``gain`` of the way towards
         ``ground`` and ``yaw`` (bounds the drift of an integrated trajectory from a live one)."""
-        kernels.pull_stream(self._ground, self._yaw, np.ascontiguousarray(ground, dtype=np.float64),
-                            np.ascontiguousarray(yaw, dtype=np.float64), self._fresh, float(gain))
+        kernels.pull_stream(self._ground, self._yaw, np.require(ground, np.float64, "CW"),
+                            np.require(yaw, np.float64, "CW"), self._fresh, float(gain))
 
     def move(self, offset: np.ndarray) -> None:
         """Move every performer's ground point by ``offset`` ``(P, 3)`` (its horizontal part): the
@@ -331,5 +331,5 @@ class StreamDecoder:
                 f"features for {f.shape[0]} performers; this decoder has {len(self._yaw)}"
             )
         sk = self.skeleton
-        return kernels.decode_stream(lay.index, sk.pelvis, sk.n_joints, np.ascontiguousarray(f), self._yaw,
+        return kernels.decode_stream(lay.index, sk.pelvis, sk.n_joints, np.require(f, np.float64, "CW"), self._yaw,
                                      self._ground, self._fresh, float(self.fps))

@@ -64,7 +64,7 @@ class FootLock:
         self._hip, self._knee, self._ankle = (np.array([sk.index(leg[k]) for leg in LEGS], dtype=np.int64)
                                               for k in range(3))
         self._parents = np.array(sk.parents, dtype=np.int64)
-        self._offsets = np.ascontiguousarray(sk.offsets, dtype=np.float64)
+        self._offsets = np.require(sk.offsets, np.float64, "CW")
         self._height = np.array([CONTACT_HEIGHT[sk.names[j]] for j in self._ankle])
         self._toes = sk.offsets[[sk.index(n) for n in TOES]]  # the feet's forward vectors
         self._fade = 1.0 / max(release_seconds * self.fps, 1.0)  # weight lost per frame
@@ -113,14 +113,14 @@ class FootLock:
         whose own low, slow ankles are taken as planted (:class:`OwnContact`). The arithmetic is
         :func:`motion_style_ros.core.kernels.lock_feet`."""
         sk = self.skeleton
-        rotations = np.ascontiguousarray(rotations, dtype=np.float64)
-        roots = np.ascontiguousarray(root_positions, dtype=np.float64)
+        rotations = np.require(rotations, np.float64, "CW")
+        roots = np.require(root_positions, np.float64, "CW")
         if input_ankles is None:
             _, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, roots), joints=[])
             input_ankles = self._own(g_pos[:, self._ankle])
         return kernels.lock_feet(
             self._parents, self._offsets, sk.pelvis, self._hip, self._knee, self._ankle, self._toes,
-            self._height, rotations, roots, np.ascontiguousarray(input_ankles, dtype=np.float64),
+            self._height, rotations, roots, np.require(input_ankles, np.float64, "CW"),
             self._last, self._last_out, self._last_root, self._back, self._target, self._landed,
             self._offset, self._heading, self._turn, self._glide, self._weight, self._locked, self._axis,
             self.fps, float(self.speed), float(self.max_stretch), self._fade, bool(self.clearance),

@@ -1,16 +1,20 @@
-"""The core's per-pose arithmetic compiled with numba: forward kinematics, heading, features and
-their inverse, one pose (a row) at a time.
+"""The core's per-pose arithmetic compiled with numba, one pose (a row) at a time: forward
+kinematics, heading, features and their inverse, and each step of a streamed frame's conditioning
+and clean-up (foot lock, standing, ground following, arm rolls, size, slerp, Hermite output).
 
-Why compiled: a streamed frame is a few dozen numbers per performer, and in numpy each operation on
-them costs its call overhead (about a microsecond) more than its arithmetic; a model frame took
+Why compiled: a streamed frame is a few dozen numbers per performer, and in numpy each operation
+on them costs its call overhead (about a microsecond) more than its arithmetic; a model frame took
 hundreds of such calls. Compiled, a row costs its arithmetic. The same kernels serve whole clips
-(rows are frames) and streams (rows are performers), so there is one implementation of each.
+(rows are frames) and streams (rows are performers), so there is one implementation of each; the
+classes that own the state (``StreamEncoder``, ``FootLock``, ...) keep it in arrays that the
+kernels update in place.
 
-Callers in :mod:`~motion_style_ros.core.motion` and :mod:`~motion_style_ros.core.features` pass
-float64 C-contiguous arrays of rows and the skeleton's index arrays; the kernels are compiled on
-first use and cached on disk (numba's ``cache=True``: beside this file, or in the user's cache
-folder where the package's folder is read-only), so a process after the first starts in a
-fraction of a second. Quaternions are ``(w, x, y, z)`` as in :mod:`~motion_style_ros.core.rotations`.
+Callers pass float64 C-contiguous writeable arrays (``np.require(x, np.float64, "CW")``), int64
+index arrays and Python scalars, so that each kernel has one signature. Kernels compile on first
+use and are cached on disk (numba's ``cache=True``: beside this file, or in ~/.cache/numba where
+the package's folder is read-only): :func:`motion_style_ros.runtime.warmup.warm_kernels` pays that
+before a node subscribes. Quaternions are ``(w, x, y, z)`` as in
+:mod:`~motion_style_ros.core.rotations`.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from numba import njit
 _EPS = 1e-12  # rotations._EPS: the smallest norm a vector is divided by
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _qmul(a, b, out) -> None:
     """``out = a * b`` (Hamilton product; ``out`` may not alias ``a`` or ``b``)."""
     aw, ax, ay, az = a[0], a[1], a[2], a[3]
@@ -34,12 +38,12 @@ def _qmul(a, b, out) -> None:
     out[3] = aw * bz + ax * by - ay * bx + az * bw
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _norm3(x: float, y: float, z: float) -> float:
     return math.sqrt(x * x + y * y + z * z)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _matrix(q, m) -> None:
     """The rotation matrix of ``q`` normalised (``rotations.to_matrix``) into ``m`` (3, 3)."""
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
@@ -56,7 +60,7 @@ def _matrix(q, m) -> None:
     m[2, 2] = w * w - x * x - y * y + z * z
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _fk_row(parents, rotations, positions, g_rot, g_pos) -> None:
     """One pose's global rotations ``(J, 4)`` and positions ``(J, 3)`` into ``g_rot``, ``g_pos``."""
     m = np.empty((3, 3))
@@ -85,14 +89,14 @@ def forward_kinematics(parents, rotations, positions):
     return g_rot, g_pos
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rest(offsets, pelvis, root, positions) -> None:
     """``motion.rest_positions`` of one pose into ``positions`` ``(J, 3)``."""
     positions[:] = offsets
     positions[pelvis] = root
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _yaw(g_pos, across) -> float:
     """The heading (rad about +Y, 0 facing +Z) of one pose ``(J, 3)`` from the left-right axis of
     hips and shoulders (``across``: left and right upper leg, left and right upper arm)."""
@@ -111,7 +115,7 @@ def facing_yaw(g_pos, across):
     return yaw
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _wrap(angle: float) -> float:
     """``features.wrap_angle``: into [-pi, pi)."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
@@ -158,7 +162,7 @@ def encode_stream(parents, offsets, pelvis, across, joints, feet, heights, rotat
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _features(joints, feet, heights, pelvis, rotations, pelvis_rot, g_pos, prev_g_pos, yaw, prev_yaw, fps,
               contact_speed, out) -> None:
     """One pose's features into ``out`` (see :func:`encode_rows`)."""
@@ -198,7 +202,7 @@ def _features(joints, feet, heights, pelvis, rotations, pelvis_rot, g_pos, prev_
         out[contact + i] = 1.0 if (g_pos[f, 1] < heights[i] and speed < contact_speed) else 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _six(q, out, at) -> None:
     """``rotations.to_6d``: the first two columns of ``q``'s matrix into ``out[at:at + 6]``."""
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
@@ -212,7 +216,7 @@ def _six(q, out, at) -> None:
     out[at + 5] = 2.0 * (y * z + w * x)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _from_6d(d, at, q) -> None:
     """``rotations.from_6d`` of ``d[at:at + 6]`` into ``q``: Gram-Schmidt to a matrix, then the
     best-conditioned column of ``4 q q^T`` (Shepperd), ``w >= 0``, normalised."""
@@ -288,7 +292,7 @@ def decode_stream(joints, pelvis, n_joints, features, yaw, ground, fresh, fps):
     return rotations, root
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pose(joints, pelvis, f, yaw, ground, rotations, root) -> None:
     """One decoded row's local rotations ``(J, 4)`` and pelvis position ``(3,)``."""
     local = np.empty(4)
@@ -308,7 +312,7 @@ def _pose(joints, pelvis, f, yaw, ground, rotations, root) -> None:
     root[2] = ground[2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rotate(q, v, out) -> None:
     """``rotations.rotate`` of one vector: ``out = R(q normalised) v`` (``out`` may alias ``v``)."""
     n = max(math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]), _EPS)
@@ -319,7 +323,7 @@ def _rotate(q, v, out) -> None:
     out[2] = 2.0 * (x * z - w * y) * v0 + 2.0 * (y * z + w * x) * v1 + (w * w - x * x - y * y + z * z) * v2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _between(u, v, q) -> None:
     """``rotations.between``: the shortest arc taking direction ``u`` onto ``v``, into ``q``."""
     nu = max(_norm3(u[0], u[1], u[2]), _EPS)
@@ -340,7 +344,7 @@ def _between(u, v, q) -> None:
     q[0], q[1], q[2], q[3] = w / n, x / n, y / n, z / n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _unit_clip(x: float) -> float:
     return min(max(x, -1.0), 1.0)
 
@@ -492,7 +496,7 @@ def lock_feet(parents, offsets, pelvis, hips, knees, ankles, toes, heights, rota
     return out, root
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _local(parent, world, out) -> None:
     """``out = conjugate(parent) * world``."""
     pw, px, py, pz = parent[0], -parent[1], -parent[2], -parent[3]
@@ -538,7 +542,7 @@ def stand(contact, sides, columns, frame, hold, ease, still, weight, output, fea
     4)`` as float64 with the root motion (``columns``) of performers standing on both feet
     eased into that of ``features`` ``(P, F)``; ``still`` and ``weight`` ``(P,)`` updated in place.
     ``contact``: the features' first contact column; ``sides`` ``(feet, 2)``: each foot's side."""
-    out = output.astype(np.float64)
+    out = output.copy()
     for r in range(out.shape[0]):
         left = right = 0.0
         for i in range(sides.shape[0]):
@@ -577,7 +581,7 @@ def follow_ground(ankles, last, offset, fps, speed, height, down, up) -> None:
         offset[r] += (down if error < 0.0 else up) * error
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _stance(root_velocity, leg_velocity, scale, min_speed, residual_fraction):
     """One frame's least-squares sums ``(-v . l, l . l)`` of its stance foot (the contact point
     whose world velocity at this ``scale`` is least; see ``proportions._stance_sums``), or zeros
@@ -794,7 +798,7 @@ def hermite_rotations(q0, r0, r1, b, cd):
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _log_between(q0, q1, ratio, out) -> None:
     """``ratio * rotations.log(conjugate(q0) * q1)``: the rotation vector from ``q0`` to ``q1``
     (short arc), scaled, into ``out`` (3,)."""

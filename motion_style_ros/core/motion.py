@@ -99,8 +99,8 @@ def forward_kinematics(
     """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones; with
     ``joints``, the global rotations of those joints only."""
     lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
-    q = np.ascontiguousarray(rotations, dtype=np.float64).reshape(-1, n_joints, 4)
-    t = np.ascontiguousarray(np.broadcast_to(positions, lead + (n_joints, 3)), dtype=np.float64)
+    q = np.require(rotations, np.float64, "CW").reshape(-1, n_joints, 4)
+    t = np.require(np.broadcast_to(positions, lead + (n_joints, 3)), np.float64, "CW")
     g_rot, g_pos = kernels.forward_kinematics(_parents(skeleton), q, t.reshape(-1, n_joints, 3))
     g_rot, g_pos = g_rot.reshape(lead + (n_joints, 4)), g_pos.reshape(lead + (n_joints, 3))
     return (g_rot if joints is None else g_rot[..., joints, :]), g_pos

@@ -48,5 +48,5 @@ class Standing:
         motion of standing performers eased into that of the input frame's ``features`` ``(P, F)``
         (:func:`motion_style_ros.core.kernels.stand`)."""
         return kernels.stand(self._contact.start, self._sides, _ROOT_MOTION, self._frame, float(self.hold_seconds),
-                             self._ease, self._still, self._weight, np.ascontiguousarray(output),
-                             np.ascontiguousarray(features))
+                             self._ease, self._still, self._weight,
+                             np.require(output, np.float64, "CW"), np.require(features, np.float32, "C"))

@@ -21,6 +21,7 @@ from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.nodes import PlayerNode, joint_state, run
 from motion_style_ros.runtime import learned_performer as learned
 from motion_style_ros.runtime.saae import DEFAULT_MODEL, SPREAD
+from motion_style_ros.runtime.warmup import warm_kernels
 from motion_style_ros.runtime.windowed import MAX_SPREAD
 
 NAME = "learned_performer"
@@ -52,6 +53,7 @@ class LearnedPerformer(PlayerNode):
         if reason := stream.problem("frame_id", self.frame_id):  # dynamically typed: checked here
             raise MotionStyleError(f"parameter frame_id: {reason}")
         self.stream = stream
+        warm_kernels()  # before the first tick: the stream does not wait for numba
         self.publisher = self.create_publisher(JointState, topic, qos_profile_sensor_data)
         self.create_timer(1.0 / self.fps, self._tick)
         self.get_logger().info(f"performing {self.stream.style!r} sampled from "

@@ -14,6 +14,7 @@ from motion_style_ros.runtime.backends import BACKENDS, Backend, with_feature
 from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.intake import Bounds
 from motion_style_ros.runtime.trajectory import VELOCITIES
+from motion_style_ros.runtime.warmup import warm_kernels
 from motion_style_ros.runtime.windowed import MAX_SPREAD
 
 # Parameters that change live, with their types (checked by the node: rclpy's own message would
@@ -154,6 +155,7 @@ def sessions(spec: Backend, model: str, count: int, values: dict) -> list:
     if spec.lookahead:
         common.update(window=values["window"] or None, hop=values["hop"], lookahead=values["lookahead"],
                       bank=values["style_bank"] or None)
+    warm_kernels()  # before the node subscribes: a stream's first frames do not wait for numba
     make = spec.session_class()
     first = make(model, **common)
     spread = max(1, round(first.input_fps / first.fps))

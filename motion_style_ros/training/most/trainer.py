@@ -95,6 +95,7 @@ class Config(DataConfig):
     w_smooth_vel: float = 0.05  # physics: pose velocity (train-std units, squared)
     w_smooth_acc: float = 0.5  # physics: pose and global acceleration
     w_foot: float = 1.0  # physics: foot contact
+    w_content: float = 0.0  # the transfer's frame content features Y against the input's (not in the paper)
     # reconstruction terms (training.losses.Losses)
     w_pos: float = 0.5
     w_vel: float = 1.0
@@ -136,6 +137,14 @@ def style_pairs(clips: Clips, length: int, styles: np.ndarray, rng: np.random.Ge
     return torch.from_numpy(np.stack(first)), torch.from_numpy(np.stack(second)), np.array(differ)
 
 
+def content_change(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
+    """How far the transfer's frame content features ``Y`` moved from the input's, relative to the
+    input's own spread, so that scaling the features down cannot shrink it; the input's side is
+    the target, not a thing to move."""
+    real = real.detach()
+    return (fake - real).pow(2).mean() / real.pow(2).mean().clamp_min(1e-6)
+
+
 class Passes(nn.Module):
     """The generator side of one iteration as one forward call (so that ``DistributedDataParallel``
     sees one forward per backward): the transfer, its twin from the second style window (no
@@ -164,7 +173,8 @@ class Passes(nn.Module):
         fake_full = self.full(fake, contacts)
         enc_f = m.encoder(fake_full)
         return {"fake": fake, "fake_full": fake_full, "twin": twin, "rec": rec,
-                "cyc_content": m.transfer(enc_f, enc_c), "cyc_style": m.transfer(enc_s, enc_f)}
+                "cyc_content": m.transfer(enc_f, enc_c), "cyc_style": m.transfer(enc_s, enc_f),
+                "content_fake": enc_f[1], "content_in": enc_c[1]}
 
 
 class Trainer(ResumableTrainer):
@@ -260,15 +270,17 @@ class Trainer(ResumableTrainer):
         dis = self._rec(out["fake"], out["twin"])
         vel, acc, foot = self.physics(out["fake"], x)
         foot = 0.5 * (foot + self.losses.foot(self.losses.views(out["cyc_content"]), x))
+        kept = content_change(out["content_fake"], out["content_in"])
         total = (cfg.w_adv * adv + cfg.w_rec * rec + cfg.w_cyc_content * cyc_c + cfg.w_cyc_style * cyc_s
-                 + cfg.w_dis * dis + cfg.w_smooth_vel * vel + cfg.w_smooth_acc * acc + cfg.w_foot * foot)
+                 + cfg.w_dis * dis + cfg.w_smooth_vel * vel + cfg.w_smooth_acc * acc + cfg.w_foot * foot
+                 + cfg.w_content * kept)
         self.opt_g.zero_grad()
         total.backward()
         self.opt_g.step()
         update_average(self.most_ema, self.most, cfg.ema)
         return {"adv": adv.item(), "critic": critic.item(), "r1": r1.item(), "rec": rec.item(),
                 "cyc_content": cyc_c.item(), "cyc_style": cyc_s.item(), "dis": dis.item(),
-                "vel": vel.item(), "acc": acc.item(), "foot": foot.item()}
+                "vel": vel.item(), "acc": acc.item(), "foot": foot.item(), "content": kept.item()}
 
     @torch.no_grad()
     def validate(self, model: MoST | None = None) -> dict[str, float]:
