@@ -498,13 +498,10 @@ def lock_feet(parents, offsets, pelvis, hips, knees, ankles, toes, heights, rota
 
 @njit(cache=True)
 def _local(parent, world, out) -> None:
-    """``out = conjugate(parent) * world``."""
-    pw, px, py, pz = parent[0], -parent[1], -parent[2], -parent[3]
-    bw, bx, by, bz = world[0], world[1], world[2], world[3]
-    out[0] = pw * bw - px * bx - py * by - pz * bz
-    out[1] = pw * bx + px * bw + py * bz - pz * by
-    out[2] = pw * by - px * bz + py * bw + pz * bx
-    out[3] = pw * bz + px * by - py * bx + pz * bw
+    """``out = conjugate(parent) * world``: a world rotation in its parent's frame."""
+    inverse = np.empty(4)
+    inverse[0], inverse[1], inverse[2], inverse[3] = parent[0], -parent[1], -parent[2], -parent[3]
+    _qmul(inverse, world, out)
 
 
 @njit(cache=True)
