@@ -436,6 +436,15 @@ def test_bench_command(model, capsys):
     assert paced["default"][1:3] == ["25.0", "ms"] and paced["pipelined"][1:3] == ["33.3", "ms"]
     # The torch generator is timed only from a checkpoint of the same model.
     assert "model call alone, 1 performer, torch" not in out
+    assert "whole model frame back to back (1 performer, input at the model's 30 Hz): p50" in out
+    # Beside the reference architecture, timed in the same run where torch is installed.
+    try:
+        import torch  # noqa: F401
+    except ModuleNotFoundError:
+        assert "torch not installed: the reference generator is not timed" in out
+    else:
+        line = next(line for line in out.splitlines() if line.startswith("reference Style-ERD generator"))
+        assert float(line.rsplit(": ", 1)[1].rstrip("x")) > 0.0
 
 
 def test_an_anchored_root_is_only_ever_held_back(clips):

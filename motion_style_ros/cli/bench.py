@@ -144,12 +144,22 @@ def run_recurrent(args) -> int:
     limit = f"at least {best}" if best == MAX_PERFORMERS else str(best)
     print(f"largest number of performers stylized in real time at {args.input_fps:g} Hz "
           f"(p99 step time under {budget_us:.0f} us): {limit}")
+    _, frames, _ = _time_steps(path, 1, args.seconds, session.fps, args.threads)
+    frame = dict(zip(("p50_us", "p99_us"), np.percentile(frames, [50, 99]).round(1).tolist()))
+    print(f"whole model frame back to back (1 performer, input at the model's {session.fps:g} Hz): "
+          f"p50 {frame['p50_us']:.0f} us, p99 {frame['p99_us']:.0f} us")
     calls = _model_calls(path, session.card, args.checkpoint, args.threads)
     for name, (p50, p99) in calls.items():
         print(f"model call alone, 1 performer, {name}: p50 {p50:.0f} us, p99 {p99:.0f} us")
     if "torch" in calls:
         print(f"torch / ONNX Runtime time per model call (p50): "
               f"{calls['torch'][0] / calls['onnxruntime'][0]:.2f}")
+    reference = _reference_step()
+    if reference:
+        print(f"reference Style-ERD generator (Tao et al.'s architecture at its default size, random weights, "
+              f"torch on {REFERENCE_THREADS} threads, state carried frame by frame): p50 {reference['p50_us']:.0f} us, "
+              f"p99 {reference['p99_us']:.0f} us; its step / this package's whole model frame (p50): "
+              f"{reference['p50_us'] / frame['p50_us']:.1f}x")
     if args.record:
         import os
         import shlex
@@ -162,9 +172,10 @@ def run_recurrent(args) -> int:
         figures = {"command": "motion-style " + shlex.join(sys.argv[1:]), "cpus": os.cpu_count(),
                    "load_average": os.getloadavg()[0], "input_fps": args.input_fps,
                    "step_per_performers": rows, "paced_1_performer": paced,
-                   "real_time_performers": best,
+                   "real_time_performers": best, "model_frame_us": frame,
                    "model_call_us": {k: {"p50": round(a, 1), "p99": round(b, 1)}
-                                     for k, (a, b) in calls.items()}}
+                                     for k, (a, b) in calls.items()},
+                   "reference_step_us": reference}
         print(f"recorded in {record_metrics(path, 'bench', figures)}")
     return 0
 
@@ -192,6 +203,21 @@ def run_windows(args) -> int:
                    "load_average": os.getloadavg()[0], **figures}
         print(f"recorded in {record_metrics(model_path(args.model), 'bench', figures)}")
     return 0
+
+
+REFERENCE_THREADS = 2  # as the reference code runs on a CPU by default (torch's threads, 2 cores here)
+
+
+def _reference_step() -> dict | None:
+    """p50/p99 (us) of one streaming step of the reference Style-ERD generator
+    (:mod:`motion_style_ros.models.reference_erd`), or None without torch."""
+    try:
+        from motion_style_ros.models.reference_erd import reference_step_times
+    except ModuleNotFoundError:
+        print("torch not installed: the reference generator is not timed")
+        return None
+    p50, p99 = reference_step_times(REFERENCE_THREADS)
+    return {"p50_us": round(p50, 1), "p99_us": round(p99, 1), "threads": REFERENCE_THREADS}
 
 
 def _model_calls(path, card: dict, checkpoint, threads: int, calls: int = 2000) -> dict:
