@@ -327,6 +327,27 @@ def style_means(model: MoST, clips: Clips, n_styles: int, count: int, seed: int
     return np.stack(s), np.stack(c)
 
 
+def paper_differences(cfg: Config) -> list[str]:
+    """What the card says of the run's networks and losses against the paper's."""
+    width = (f"body-part tokens of width {cfg.dim} ({cfg.heads} heads)"
+             + (" as the paper's" if cfg.dim == 48 else " instead of 48"))
+    return [
+        (f"{width}, {cfg.enc_blocks} + 1 encoder and {cfg.dec_blocks} generator blocks (the paper's code: "
+         f"2 + 1 and 3), {cfg.window}-frame windows at 30 fps instead of 200 at 60 fps (2-hour CPU budget; "
+         "the stream's windows)"),
+        ("6D rotations, positions, velocities and foot contacts per joint, the root block "
+         "(facing-frame velocity, pelvis height, yaw rate) as the global translation and velocity"),
+        "sinusoidal frame positions and learned part positions; no dropout",
+        ("losses in the shared units (rotation angle, FK positions and velocities, root); the "
+         "physics terms on FK pose velocity and acceleration, the root block's change and the "
+         "feet's speed at the content window's contacts (transfer and content cycle)"
+         + (f"; a content term (weight {cfg.w_content}): the transfer's frame content features "
+            "against the input's, relative to their spread" if cfg.w_content else "")),
+        (f"Adam betas {cfg.betas}, weight decay {cfg.weight_decay}, learning rate {cfg.lr} "
+         f"(discriminator {cfg.lr_dis}), batch {cfg.batch}, lazy R1 every {cfg.r1_every}"),
+    ]
+
+
 def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: int | None = None,
           resume: bool = False, checkpoints: Path = CHECKPOINTS, threads: int = 2,
           data: Data | None = None, progress: bool = True, command: str = "",
@@ -346,19 +367,6 @@ def train(cfg: Config, out_dir: Path, minutes: float | None = None, iterations: 
         **record,
         "exported": f"exponential moving average of the model's weights (decay {cfg.ema}); every "
                     f"style's mean style features over {cfg.means_per_style} train windows",
-        "differences_from_paper": [
-            (f"body-part tokens of width {cfg.dim} ({cfg.heads} heads) instead of 48, {cfg.enc_blocks} + 1 "
-             f"encoder and {cfg.dec_blocks} generator blocks (the paper's code: 2 + 1 and 3), "
-             f"{cfg.window}-frame windows at 30 fps instead of 200 at 60 fps (2-hour CPU budget; the "
-             "stream's windows)"),
-            ("6D rotations, positions, velocities and foot contacts per joint, the root block "
-             "(facing-frame velocity, pelvis height, yaw rate) as the global translation and velocity"),
-            "sinusoidal frame positions and learned part positions; no dropout",
-            ("losses in the shared units (rotation angle, FK positions and velocities, root); the "
-             "physics terms on FK pose velocity and acceleration, the root block's change and the "
-             "feet's speed at the content window's contacts (transfer and content cycle)"),
-            (f"Adam betas {cfg.betas}, weight decay {cfg.weight_decay}, learning rate {cfg.lr} "
-             f"(discriminator {cfg.lr_dis}), batch {cfg.batch}, lazy R1 every {cfg.r1_every}"),
-        ],
+        "differences_from_paper": paper_differences(cfg),
     }
     return write_model(model.cpu(), out_dir / f"{NAME}.onnx", info, probe, means)
