@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from motion_style_ros.core import kernels, rotations as rot
+from motion_style_ros.core import kernels
 from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
@@ -119,18 +119,6 @@ def _contact_heights(skeleton: Skeleton) -> np.ndarray:
     return np.array([CONTACT_HEIGHT.get(skeleton.names[j], 0.1) for j in skeleton.feet])
 
 
-def foot_contacts(global_positions: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
-    """``(T, n_feet)`` 0/1 contacts: low and slow, speed by backward difference (causal)."""
-    return _contacts(global_positions, _previous(global_positions), skeleton, fps)
-
-
-def _contacts(g_pos: np.ndarray, prev_g_pos: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
-    feet = _feet(skeleton)
-    p = g_pos[..., feet, :]
-    speed = rot.norm(p - prev_g_pos[..., feet, :]) * fps
-    return ((p[..., 1] < _contact_heights(skeleton)) & (speed < CONTACT_SPEED)).astype(np.float32)
-
-
 def _previous(x: np.ndarray) -> np.ndarray:
     """Each frame's predecessor along time; frame 0 stands in for its own (zero velocity)."""
     return np.concatenate([x[:1], x[:-1]])
@@ -192,15 +180,6 @@ def _check_decodable(f: np.ndarray, lay: FeatureLayout, lead: str) -> None:
         )
 
 
-def _ground_step(root: np.ndarray, yaw: np.ndarray, fps: float) -> np.ndarray:
-    """Ground displacement over one frame: the facing-frame velocity turned by the frame's heading."""
-    cos, sin = np.cos(yaw), np.sin(yaw)
-    step = np.zeros(yaw.shape + (3,))
-    step[..., 0] = (cos * root[..., 0] + sin * root[..., 1]) / fps
-    step[..., 2] = (cos * root[..., 1] - sin * root[..., 0]) / fps
-    return step
-
-
 def _pose(
     sk: Skeleton, lay: FeatureLayout, f: np.ndarray, yaw: np.ndarray, ground: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -233,12 +212,8 @@ def decode(
     lay = feature_layout(sk)
     f = np.asarray(features, dtype=np.float64)
     _check_decodable(f, lay, "T")
-    root = f[:, lay.slices["root"]]
-    # Running sums frame by frame (np.add.accumulate), exactly as StreamDecoder integrates.
-    yaw = np.cumsum(np.concatenate([[start_yaw], root[1:, 3] / fps]))
-    start = np.zeros(3) if start_ground is None else np.asarray(start_ground, dtype=np.float64)
-    steps = _ground_step(root[1:], yaw[1:], fps)
-    ground = np.cumsum(np.concatenate([start[None] * _GROUND, steps]), axis=0)
+    start = np.zeros(3) if start_ground is None else np.require(start_ground, np.float64, "CW")
+    yaw, ground = kernels.trajectory(np.require(f, np.float64, "CW"), start, float(start_yaw), float(fps))
     rotations, root_pos = _pose(sk, lay, f, yaw, ground)
     return Motion.from_rotations(sk, rotations, root_pos, fps)
 

@@ -281,15 +281,38 @@ def decode_stream(joints, pelvis, n_joints, features, yaw, ground, fresh, fps):
     rotations = np.empty((n, n_joints, 4))
     root = np.empty((n, 3))
     for r in range(n):
-        f = features[r]
         if not fresh[r]:
-            yaw[r] += f[3] / fps
-            cos, sin = math.cos(yaw[r]), math.sin(yaw[r])
-            ground[r, 0] += (cos * f[0] + sin * f[1]) / fps
-            ground[r, 2] += (cos * f[1] - sin * f[0]) / fps
+            yaw[r] = _step_root(features[r], yaw[r], ground[r], ground[r], fps)
         fresh[r] = False
-        _pose(joints, pelvis, f, yaw[r], ground[r], rotations[r], root[r])
+        _pose(joints, pelvis, features[r], yaw[r], ground[r], rotations[r], root[r])
     return rotations, root
+
+
+@njit(cache=True)
+def trajectory(features, start_ground, start_yaw, fps):
+    """Heading ``(T,)`` and ground point ``(T, 3)`` of decoded frames ``(T, >= 4)`` integrated from
+    frame 0's ``start_ground`` (horizontal) and ``start_yaw``, as :func:`decode_stream` does."""
+    n = features.shape[0]
+    yaw = np.empty(n)
+    ground = np.zeros((n, 3))
+    if n == 0:
+        return yaw, ground
+    yaw[0], ground[0, 0], ground[0, 2] = start_yaw, start_ground[0], start_ground[2]
+    for t in range(1, n):
+        yaw[t] = _step_root(features[t], yaw[t - 1], ground[t - 1], ground[t], fps)
+    return yaw, ground
+
+
+@njit(cache=True)
+def _step_root(f, yaw, ground, out, fps) -> float:
+    """One frame of a decoded trajectory: the heading turned by the root block's yaw rate, then
+    the ground point moved by its velocity in the new facing frame (``out`` may be ``ground``);
+    returns the heading."""
+    yaw += f[3] / fps
+    cos, sin = math.cos(yaw), math.sin(yaw)
+    out[0] = ground[0] + (cos * f[0] + sin * f[1]) / fps
+    out[2] = ground[2] + (cos * f[1] - sin * f[0]) / fps
+    return yaw
 
 
 @njit(cache=True)
