@@ -69,7 +69,7 @@ class Config(DataConfig):
     # networks (models.most.MostConfig); the paper: dim 48, 4 heads, 2 + 1 encoder blocks, 3
     # generator blocks, 1 discriminator block, 200 frames at 60 fps
     window: int = 48
-    dim: int = 32
+    dim: int = 48
     heads: int = 4
     enc_blocks: int = 2
     dec_blocks: int = 2
@@ -95,7 +95,7 @@ class Config(DataConfig):
     w_smooth_vel: float = 0.05  # physics: pose velocity (train-std units, squared)
     w_smooth_acc: float = 0.5  # physics: pose and global acceleration
     w_foot: float = 1.0  # physics: foot contact
-    w_content: float = 0.0  # the transfer's frame content features Y against the input's (not in the paper)
+    w_content: float = 1.0  # the transfer's frame content features Y against the input's (not in the paper)
     # reconstruction terms (training.losses.Losses)
     w_pos: float = 0.5
     w_vel: float = 1.0
