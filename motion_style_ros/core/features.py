@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from motion_style_ros.core import kernels
-from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
+from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
 
