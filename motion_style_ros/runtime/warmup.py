@@ -1,7 +1,7 @@
 """Every compiled kernel a stream and the clip functions run, made ready before the first frame.
 
 The core's arithmetic is compiled by numba on first use (:mod:`motion_style_ros.core.kernels`) and
-cached on disk. The first use after an install compiles it (about half a minute on a small 2-core
+cached on disk. The first use after an install compiles it (17-45 s on a small 2-core
 machine), later ones load the cache (a fraction of a second); :func:`warm_kernels` pays either
 before a node subscribes, so that neither lands on a live stream's first frames. It streams a
 second of a synthetic walk through a session with every conditioning on and an echo for a model
