@@ -84,7 +84,10 @@ def run(args) -> int:
             node.create_subscription(
                 JointState, topic, lambda msg, info, seen=seen: seen.append(
                     (stamp_ns(msg.header.stamp), info["received_timestamp"])), qos_profile_sensor_data)
-        graph.spin_until(lambda: len(outputs) > args.rate, "the stylized stream", STARTUP_SECONDS)
+        # both subscriptions matched: this process can discover the stylizer's publisher before the
+        # performer's (a clean clone's CI saw outputs and no input yet)
+        graph.spin_until(lambda: len(outputs) > args.rate and inputs, "the input and stylized streams",
+                         STARTUP_SECONDS)
         unseen.append((0, inputs[0][0]))
         print(f"{args.rate:g} Hz, {args.backend}; each fault: SIGKILL, {args.pause:g} s, the process "
               "started again; times from its start (ms)")
