@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from motion_style_ros.core import kernels
-from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.motion import Motion, kinematic_arrays
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
 
@@ -100,16 +100,6 @@ def _index(skeleton: Skeleton, names: tuple[str, ...]) -> np.ndarray:
 
 
 @functools.cache
-def _parents(skeleton: Skeleton) -> np.ndarray:
-    return np.array(skeleton.parents, dtype=np.int64)
-
-
-@functools.cache
-def _offsets(skeleton: Skeleton) -> np.ndarray:
-    return np.require(skeleton.offsets, np.float64, "CW")
-
-
-@functools.cache
 def _feet(skeleton: Skeleton) -> np.ndarray:
     return np.array(skeleton.feet, dtype=np.int64)
 
@@ -122,11 +112,6 @@ def _contact_heights(skeleton: Skeleton) -> np.ndarray:
 def _previous(x: np.ndarray) -> np.ndarray:
     """Each frame's predecessor along time; frame 0 stands in for its own (zero velocity)."""
     return np.concatenate([x[:1], x[:-1]])
-
-
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
-    """Angles (rad) into [-pi, pi)."""
-    return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
 def encode(motion: Motion) -> np.ndarray:
@@ -243,7 +228,7 @@ class StreamEncoder:
         positions ``(P, 3)`` (the translation of the pelvis in its parent's frame)."""
         sk, lay = self.skeleton, self._layout
         return kernels.encode_stream(
-            _parents(sk), _offsets(sk), sk.pelvis, _index(sk, _ACROSS), lay.index, _feet(sk), _contact_heights(sk),
+            *kinematic_arrays(sk), sk.pelvis, _index(sk, _ACROSS), lay.index, _feet(sk), _contact_heights(sk),
             np.require(rotations, np.float64, "CW"), np.require(root_positions, np.float64, "CW"),
             self._last, self._yaw, self._fresh, float(self.fps), CONTACT_SPEED, lay.size)
 

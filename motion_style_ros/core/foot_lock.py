@@ -34,7 +34,7 @@ import numpy as np
 
 from motion_style_ros.core import kernels
 from motion_style_ros.core.features import CONTACT_HEIGHT, Mask
-from motion_style_ros.core.motion import forward_kinematics, rest_positions
+from motion_style_ros.core.motion import forward_kinematics, kinematic_arrays, rest_positions
 from motion_style_ros.core.skeleton import Skeleton, canonical
 
 LEGS = (("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R"))
@@ -63,8 +63,6 @@ class FootLock:
         self.fps = float(fps)
         self._hip, self._knee, self._ankle = (np.array([sk.index(leg[k]) for leg in LEGS], dtype=np.int64)
                                               for k in range(3))
-        self._parents = np.array(sk.parents, dtype=np.int64)
-        self._offsets = np.require(sk.offsets, np.float64, "CW")
         self._height = np.array([CONTACT_HEIGHT[sk.names[j]] for j in self._ankle])
         self._toes = sk.offsets[[sk.index(n) for n in TOES]]  # the feet's forward vectors
         self._fade = 1.0 / max(release_seconds * self.fps, 1.0)  # weight lost per frame
@@ -119,7 +117,7 @@ class FootLock:
             _, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, roots), joints=[])
             input_ankles = self._own(g_pos[:, self._ankle])
         return kernels.lock_feet(
-            self._parents, self._offsets, sk.pelvis, self._hip, self._knee, self._ankle, self._toes,
+            *kinematic_arrays(sk), sk.pelvis, self._hip, self._knee, self._ankle, self._toes,
             self._height, rotations, roots, np.require(input_ankles, np.float64, "CW"),
             self._last, self._last_out, self._last_root, self._back, self._target, self._landed,
             self._offset, self._heading, self._turn, self._glide, self._weight, self._locked, self._axis,

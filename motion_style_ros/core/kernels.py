@@ -44,20 +44,21 @@ def _norm3(x: float, y: float, z: float) -> float:
 
 
 @njit(cache=True)
-def _matrix(q, m) -> None:
-    """The rotation matrix of ``q`` normalised (``rotations.to_matrix``) into ``m`` (3, 3)."""
+def _entries(q):
+    """The rotation matrix of ``q`` normalised (``rotations.to_matrix``), row by row, as nine
+    numbers (no array to allocate in an inner loop)."""
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     n = max(n, _EPS)
     w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
-    m[0, 0] = w * w + x * x - y * y - z * z
-    m[0, 1] = 2.0 * (x * y - w * z)
-    m[0, 2] = 2.0 * (x * z + w * y)
-    m[1, 0] = 2.0 * (x * y + w * z)
-    m[1, 1] = w * w - x * x + y * y - z * z
-    m[1, 2] = 2.0 * (y * z - w * x)
-    m[2, 0] = 2.0 * (x * z - w * y)
-    m[2, 1] = 2.0 * (y * z + w * x)
-    m[2, 2] = w * w - x * x - y * y + z * z
+    return (w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z)
+
+
+@njit(cache=True)
+def _matrix(q, m) -> None:
+    """:func:`_entries` into ``m`` (3, 3)."""
+    m[0, 0], m[0, 1], m[0, 2], m[1, 0], m[1, 1], m[1, 2], m[2, 0], m[2, 1], m[2, 2] = _entries(q)
 
 
 @njit(cache=True)
@@ -117,7 +118,7 @@ def facing_yaw(g_pos, across):
 
 @njit(cache=True)
 def _wrap(angle: float) -> float:
-    """``features.wrap_angle``: into [-pi, pi)."""
+    """An angle (rad) into [-pi, pi)."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
@@ -205,15 +206,9 @@ def _features(joints, feet, heights, pelvis, rotations, pelvis_rot, g_pos, prev_
 @njit(cache=True)
 def _six(q, out, at) -> None:
     """``rotations.to_6d``: the first two columns of ``q``'s matrix into ``out[at:at + 6]``."""
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    n = max(n, _EPS)
-    w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
-    out[at] = w * w + x * x - y * y - z * z
-    out[at + 1] = 2.0 * (x * y + w * z)
-    out[at + 2] = 2.0 * (x * z - w * y)
-    out[at + 3] = 2.0 * (x * y - w * z)
-    out[at + 4] = w * w - x * x + y * y - z * z
-    out[at + 5] = 2.0 * (y * z + w * x)
+    m00, m01, _, m10, m11, _, m20, m21, _ = _entries(q)
+    out[at], out[at + 1], out[at + 2] = m00, m10, m20
+    out[at + 3], out[at + 4], out[at + 5] = m01, m11, m21
 
 
 @njit(cache=True)
@@ -338,12 +333,11 @@ def _pose(joints, pelvis, f, yaw, ground, rotations, root) -> None:
 @njit(cache=True)
 def _rotate(q, v, out) -> None:
     """``rotations.rotate`` of one vector: ``out = R(q normalised) v`` (``out`` may alias ``v``)."""
-    n = max(math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]), _EPS)
-    w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = _entries(q)
     v0, v1, v2 = v[0], v[1], v[2]
-    out[0] = (w * w + x * x - y * y - z * z) * v0 + 2.0 * (x * y - w * z) * v1 + 2.0 * (x * z + w * y) * v2
-    out[1] = 2.0 * (x * y + w * z) * v0 + (w * w - x * x + y * y - z * z) * v1 + 2.0 * (y * z - w * x) * v2
-    out[2] = 2.0 * (x * z - w * y) * v0 + 2.0 * (y * z + w * x) * v1 + (w * w - x * x - y * y + z * z) * v2
+    out[0] = m00 * v0 + m01 * v1 + m02 * v2
+    out[1] = m10 * v0 + m11 * v1 + m12 * v2
+    out[2] = m20 * v0 + m21 * v1 + m22 * v2
 
 
 @njit(cache=True)
