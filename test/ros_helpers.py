@@ -19,6 +19,7 @@ from motion_style_ros.cli.live import stop_process
 from motion_style_ros.nodes.stylizer import stamp_seconds
 
 TIMEOUT = 60.0  # generous bound for readiness on a loaded machine; never a timing assertion
+RESEND_AFTER = 5.0  # a service request unanswered this long is sent again (Listener.call)
 BEST_EFFORT = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
@@ -121,11 +122,27 @@ class Listener:
         for _ in range(20):
             self.executor.spin_once(timeout_sec=0.05)
 
-    def call(self, client, request, procs=()):
-        """A service's response (waits for the service to appear, then for the answer)."""
+    def call(self, client, request, procs=(), resend_after=RESEND_AFTER):
+        """A service's response (waits for the service to appear, then for the answer).
+
+        Fast DDS drops a response when the server has not yet matched the client's response reader
+        (it waits 100 ms: "failed to send response (timeout)", ros2/ros2#1253), which a loaded
+        machine hits on a client's first call. So a request with no answer after ``resend_after``
+        seconds is sent again (the earlier one forgotten); give None for a request that must not run
+        twice (a lifecycle transition), after an idempotent call to the same node has matched.
+        """
         self.spin_until(client.service_is_ready, f"service {client.srv_name}", procs=procs)
         future = client.call_async(request)
-        self.spin_until(future.done, f"an answer from {client.srv_name}", procs=procs)
+        sent = time.monotonic()
+
+        def answered():
+            nonlocal future, sent
+            if not future.done() and resend_after is not None and time.monotonic() - sent > resend_after:
+                client.remove_pending_request(future)
+                future, sent = client.call_async(request), time.monotonic()
+            return future.done()
+
+        self.spin_until(answered, f"an answer from {client.srv_name}", procs=procs)
         return future.result()
 
     def close(self):

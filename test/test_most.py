@@ -194,3 +194,14 @@ def test_bad_references_are_rejected_with_a_reason(exported, datasets, tmp_path)
         MostSession(exported, window=16, lookahead=16)
     # a good clip is recognised as one of the styles and made the target
     assert session.set_reference(walk) in session.styles
+
+
+def test_a_negative_content_weight_is_one_line_before_any_data_is_read(tmp_path):
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "train", "most", "--content-weight",
+                          "-0.5", "--out", str(tmp_path)], check=False, capture_output=True, text=True)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert "--content-weight must be 0 or more, got -0.5" in out.stderr
+    assert not any(tmp_path.iterdir())

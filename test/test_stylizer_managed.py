@@ -39,7 +39,7 @@ def test_lifecycle_transitions_with_a_real_process(model, ros_env, tmp_path):
 
         def transition(id_):
             assert listener.call(change, ChangeState.Request(transition=Transition(id=id_)),
-                                 procs=[proc]).success
+                                 procs=[proc], resend_after=None).success
 
         def stream(n):
             """Publish n frames; how many stylized frames came back."""
@@ -88,6 +88,7 @@ def test_a_configure_that_fails_says_why_and_leaves_the_node_unconfigured(ros_en
         change = listener.node.create_client(ChangeState, "/stylizer/change_state")
         get = listener.node.create_client(GetState, "/stylizer/get_state")
         request = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE))
+        # a failed configure leaves the node unconfigured, so sending it again (Listener.call) is safe
         assert not listener.call(change, request, procs=[proc]).success
         assert listener.call(get, GetState.Request(), procs=[proc]).current_state.id == \
             State.PRIMARY_STATE_UNCONFIGURED

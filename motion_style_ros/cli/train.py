@@ -87,6 +87,9 @@ def add_parser(subparsers):
                     "takes, then export the streamed step and the reference style encoder to ONNX "
                     "with every style's mean features and the model card. " + _RESUMABLE.format("most"),
     )
+    most.add_argument("--content-weight", type=float, default=None, metavar="W",
+                      help="weight of the content term (the transfer's frame content features against "
+                           "the input's; not in the paper; default: the trainer's Config)")
     _budget_flags(most, minutes=100.0)
     _output_flags(most, "most*.onnx, the style means and the card")
     most.set_defaults(func=run_most)
@@ -331,8 +334,18 @@ def run_saae(args) -> int:
 
 
 def run_most(args) -> int:
-    most, out, fields, recipe = _stylizer_run(args, "most", "the MoST trainer does not restyle unlabelled clips")
-    card = most.train(most.Config(seed=args.seed, **fields), out, **_run_settings(args, "most", recipe))
+    from motion_style_ros.errors import MotionStyleError
+
+    def content_weight() -> None:
+        if args.content_weight is not None and not args.content_weight >= 0:
+            raise MotionStyleError(f"--content-weight must be 0 or more, got {args.content_weight}")
+
+    most, out, fields, recipe = _stylizer_run(args, "most", "the MoST trainer does not restyle unlabelled clips",
+                                              content_weight)
+    changes = {"w_content": args.content_weight} if args.content_weight is not None else {}
+    after = f" --content-weight {args.content_weight:g}" if args.content_weight is not None else ""
+    card = most.train(most.Config(seed=args.seed, **fields, **changes), out,
+                      **_run_settings(args, "most", recipe, after=after))
     return _report(card, out, lambda val: (
         f"{_reconstruction(val)}, disentanglement {val['val_disentangle']:.3f}, transfers nearest their "
         f"style {val['val_transfer_style_acc']:.2f}"), "most")
