@@ -84,3 +84,31 @@ def test_between_takes_u_onto_v_as_the_numpy_one_does(u, v):
     kernels._between(u, v, q)
     np.testing.assert_allclose(q, rot.between(u, v), atol=1e-12)
     np.testing.assert_allclose(rot.rotate(q, u / np.linalg.norm(u)), v / np.linalg.norm(v), atol=1e-12)
+
+
+def test_layout_angles_are_rep103_xyz_euler_like_scipy_and_invert():
+    core_to_ros = np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], dtype=float)  # core (x, y, z) -> ROS (z, x, y)
+    q = random_quats(50)
+    locked = Rotation.from_euler("XYZ", [[0.3, np.pi / 2, 0.2], [0.1, -np.pi / 2, 0.5]]).as_matrix()  # in ROS axes
+    q[:2] = Rotation.from_matrix(core_to_ros.T @ locked @ core_to_ros).as_quat()[:, [3, 0, 1, 2]]
+    angles = kernels.euler_rows(q)
+    ros = Rotation.from_matrix(core_to_ros @ scipy_of(q).as_matrix() @ core_to_ros.T)
+    back = Rotation.from_euler("XYZ", angles)  # intrinsic X-Y-Z, as the layout documents
+    np.testing.assert_allclose((back.inv() * ros).magnitude(), 0.0, atol=1e-9)
+    np.testing.assert_allclose(angles[2:], ros[2:].as_euler("XYZ"), atol=1e-9)
+    assert abs(angles[0, 2]) < 1e-12 and abs(angles[1, 2]) < 1e-12  # locked: the third angle is 0
+    again = kernels.quat_rows(angles)
+    np.testing.assert_allclose(np.abs(np.sum(again * q, axis=-1)), 1.0, atol=1e-9)  # q or -q
+
+
+def test_layout_values_and_poses_invert_each_other():
+    sk = canonical()
+    q = random_quats(7, sk.n_joints)
+    q[:, :sk.pelvis] = [1.0, 0.0, 0.0, 0.0]  # above the pelvis: static, as in a stream
+    roots = RNG.normal(size=(7, 3))
+    values = kernels.layout_values(q, roots, sk.pelvis)
+    assert values.shape == (7, 3 + 3 * (sk.n_joints - sk.pelvis))
+    np.testing.assert_array_equal(values[:, :3], roots[:, [2, 0, 1]])
+    rotations, back = kernels.layout_poses(values, sk.pelvis)
+    np.testing.assert_allclose(back, roots, atol=1e-15)
+    np.testing.assert_allclose(np.abs(np.sum(rotations * q, axis=-1)), 1.0, atol=1e-9)

@@ -3,7 +3,6 @@ between good frames. The node never crashes, never publishes a non-finite value,
 frame by its reason, and stylizes the good frame right after each bad one."""
 
 import numpy as np
-import pytest
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy

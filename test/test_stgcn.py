@@ -15,7 +15,7 @@ from motion_style_ros.core.features import feature_layout
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.models.stgcn import Generator, MappingNetwork, StyleEncoder, tiny
 from motion_style_ros.training import data as training_data
-from motion_style_ros.training import recurrent, stgcn
+from motion_style_ros.training import stgcn
 
 
 @pytest.fixture(scope="module")

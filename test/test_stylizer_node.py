@@ -185,9 +185,8 @@ def check_trajectory_chunk(msg, names):
 
 
 def trajectory_points(chunks):
-    """Every point of the chunks in order: stamps (s, from the frames' spacing), positions and
-    velocities (NaN where a point has none)."""
-    t, pos, vel = [], [], []
+    """Every point of the chunks in order: positions and velocities (NaN where a point has none)."""
+    pos, vel = [], []
     for chunk in chunks:
         for p in chunk.points:
             pos.append(p.positions)
@@ -377,7 +376,6 @@ def test_bad_input_is_dropped_and_counted_and_the_next_good_frame_is_stylized(ri
     gap = [good(k, shift=8 * 10**8) for k in range(1021, 1025)]  # 0.8 s without frames, by stamps
     started = time.time_ns()
     rig.send("p3", gap)
-    before = time.time_ns()
     unstamped = good(1025)[1]
     rig.send("p3", [(0, unstamped)])  # unstamped: on the stream's clock, by its arrival
     after = time.time_ns()

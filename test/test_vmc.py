@@ -17,7 +17,7 @@ from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import vmc
 from motion_style_ros.io.joint_state import rotations_from_values
-from vmc_helpers import BLENDSHAPES, as_motion, sender_frames, unity_humanoid
+from vmc_helpers import sender_frames, unity_humanoid
 
 RNG = np.random.default_rng(7)
 

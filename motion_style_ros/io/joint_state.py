@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import fnmatch
 import functools
-import warnings
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -40,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_style_ros.core import rotations as rot
+from motion_style_ros.core import kernels
 from motion_style_ros.core.retarget import tpose
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
@@ -48,7 +47,6 @@ from motion_style_ros.errors import MotionStyleError
 AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 # Core (x, y, z) -> ROS (z, x, y): row i of C picks the core axis that becomes ROS axis i.
 _CORE_TO_ROS = [2, 0, 1]
-_ROS_TO_CORE = [1, 2, 0]
 _PELVIS = canonical().pelvis  # looked up once: building the skeleton costs more than a frame's maths
 # Unity HumanBodyBones outside the body the stylizer restyles: fingers, eyes and jaw. A VMC stream's
 # values for them travel as <Bone>_rx/_ry/_rz beside the body (see rotation_values).
@@ -66,23 +64,9 @@ def to_ros(v: np.ndarray) -> np.ndarray:
     return v[..., _CORE_TO_ROS]
 
 
-def _to_core(v: np.ndarray) -> np.ndarray:
-    return v[..., _ROS_TO_CORE]
-
-
-def _quat_to_ros(q: np.ndarray) -> np.ndarray:
-    """Conjugation by C turns the rotation axis with C and keeps the angle."""
-    return np.concatenate([q[..., :1], to_ros(q[..., 1:])], axis=-1)
-
-
-def _quat_to_core(q: np.ndarray) -> np.ndarray:
-    return np.concatenate([q[..., :1], _to_core(q[..., 1:])], axis=-1)
-
-
-def _euler_xyz(q: np.ndarray) -> np.ndarray:
-    with warnings.catch_warnings():  # gimbal lock: scipy still returns angles that compose back
-        warnings.simplefilter("ignore", UserWarning)
-        return rot.to_euler(q, "XYZ")
+def _rows(x: np.ndarray, width: int) -> np.ndarray:
+    """``x (..., width)`` as the kernels' float64 C rows ``(N, width)``."""
+    return np.require(np.asarray(x, dtype=np.float64).reshape(-1, width), np.float64, "CW")
 
 
 def rotation_names(bones: Sequence[str]) -> list[str]:
@@ -93,13 +77,12 @@ def rotation_names(bones: Sequence[str]) -> list[str]:
 def rotation_values(quats: np.ndarray) -> np.ndarray:
     """Core-frame quaternions ``(N, 4)`` as ``(3 N,)`` angles, the layout's convention (REP-103 axes,
     intrinsic X-Y-Z Euler), e.g. a VMC sender's finger rotations relative to its rest pose."""
-    q = np.asarray(quats, dtype=np.float64).reshape(-1, 4)
-    return _euler_xyz(_quat_to_ros(rot.normalize(q))).ravel()
+    return kernels.euler_rows(_rows(quats, 4)).ravel()
 
 
 def rotations_from_values(values: np.ndarray) -> np.ndarray:
     """The inverse of :func:`rotation_values`: ``(3 N,)`` angles -> core quaternions ``(N, 4)``."""
-    return _quat_to_core(rot.from_euler(np.asarray(values, dtype=np.float64).reshape(-1, 3), "XYZ"))
+    return kernels.quat_rows(_rows(values, 3))
 
 
 def default_names(skeleton: Skeleton | None = None) -> list[str]:
@@ -117,21 +100,17 @@ def _tpose_vector() -> np.ndarray:
 
 def _encode_default(rotations: np.ndarray, root_positions: np.ndarray) -> np.ndarray:
     """``(..., 22, 4)`` local rotations and ``(..., 3)`` pelvis positions -> ``(..., 66)``."""
-    pelvis = _PELVIS
-    hips = rot.multiply(rotations[..., 0, :], rotations[..., pelvis, :])  # joint_Root is static
-    quats = np.concatenate([hips[..., None, :], rotations[..., pelvis + 1:, :]], axis=-2)
-    angles = _euler_xyz(_quat_to_ros(rot.normalize(quats)))
-    lead = angles.shape[:-2]
-    return np.concatenate([to_ros(np.asarray(root_positions, dtype=np.float64)),
-                           angles.reshape(lead + (-1,))], axis=-1)
+    rotations = np.asarray(rotations, dtype=np.float64)
+    lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
+    values = kernels.layout_values(_rows(rotations, n_joints * 4).reshape(-1, n_joints, 4),
+                                   _rows(root_positions, 3), _PELVIS)
+    return values.reshape(lead + values.shape[-1:])
 
 
 def _decode_default(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    pelvis = _PELVIS
-    angles = values[..., 3:].reshape(values.shape[:-1] + (-1, 3))
-    quats = _quat_to_core(rot.from_euler(angles, "XYZ"))
-    rotations = rot.identity(values.shape[:-1] + (pelvis,))
-    return np.concatenate([rotations, quats], axis=-2), _to_core(values[..., :3])
+    rotations, roots = kernels.layout_poses(_rows(values, values.shape[-1]), _PELVIS)
+    lead = values.shape[:-1]
+    return rotations.reshape(lead + rotations.shape[1:]), roots.reshape(lead + (3,))
 
 
 @dataclass(frozen=True)

@@ -197,7 +197,7 @@ class StepGraph(nn.Module):
     def __init__(self, model: StyleERD) -> None:
         super().__init__()
         self.model = model
-        cfg, hidden = model.cfg, model.cfg.latent
+        hidden = model.cfg.latent
         layers = [lstm.num_layers for lstm in model.stacks]
         offsets = np.cumsum([0] + [2 * n * hidden for n in layers])
         self.layer_stacks: list[tuple[int, int]] = []  # per layer: the stacks that have it (a range)
@@ -235,6 +235,7 @@ class StepGraph(nn.Module):
         state = torch.where(reset > 0.5, m.initial_state(1), state)
         z = m.encoder((features - m.in_mean) / m.in_std)  # (B, latent)
         new, tops = [], []  # tops: (first stack, h) of the stacks whose last layer this is
+        below = z  # the layer below's h (layer 0 reads the latent code instead)
         for layer, (first, last) in enumerate(self.layer_stacks):
             h = state[:, self.read[2 * layer]].transpose(0, 1)  # (stacks, B, hidden)
             c = state[:, self.read[2 * layer + 1]].transpose(0, 1)

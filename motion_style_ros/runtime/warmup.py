@@ -21,6 +21,7 @@ from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.proportions import clip_scale
 from motion_style_ros.core.resample import resample
 from motion_style_ros.core.synthetic import synthetic_motion
+from motion_style_ros.io.joint_state import JointStateLayout, rotation_values, rotations_from_values
 from motion_style_ros.io.resources import rotation_stats
 from motion_style_ros.runtime.stream import ModelFrame, StreamSession, Stylized
 
@@ -58,4 +59,7 @@ def warm_kernels() -> float:
     conform_rolls(clip, rotation_stats())
     clip_scale(clip)
     FootLock(1, clip.fps)(clip.rotations[:1], clip.root_positions[:1])
+    layout = JointStateLayout.canonical()
+    layout.decode(layout.names, layout.encode(clip.rotations[0], clip.root_positions[0]))
+    rotations_from_values(rotation_values(clip.rotations[0]))
     return time.monotonic() - start
