@@ -57,7 +57,7 @@ class ErdConfig:
 
 def tiny(styles: tuple[str, ...], neutral: str = "normal") -> ErdConfig:
     """A very small network with the real interface (tests, runtime development)."""
-    return ErdConfig(styles, neutral, encoder=(16,), latent=8, neutral_layers=2, style_layers=1,
+    return ErdConfig(styles, neutral, encoder=(16,), latent=8, neutral_layers=2, style_layers=2,
                      decoder=(16,))
 
 
@@ -187,76 +187,60 @@ class StyleERD(nn.Module):
 class StepGraph(nn.Module):
     """One streaming step, the exported ONNX graph (see the recurrent model card).
 
-    The same maths as :class:`StyleERD` on one frame, written for a small graph: the stacks' LSTM
-    layers run as one batched matrix product per layer (stacks as the batch) instead of one LSTM
-    node per stack and layer, each wrapped in transposes. A step is then a few dozen ONNX nodes,
-    which is what a streamed frame pays for (per-node overhead, and code that falls out of the
-    CPU's caches between frames). The state keeps :class:`StyleERD`'s flat layout.
+    The same maths as :class:`StyleERD` on one frame, written for a small graph, because a streamed
+    frame pays ONNX Runtime's cost per node more than its arithmetic: every stack's LSTM layer is
+    one broadcast matrix product (stacks as a batch axis, performers as another), the state is read
+    with one reshape and one split and written with one concat in :class:`StyleERD`'s flat layout,
+    and the gate columns are reordered (i, f, o, g) so that one sigmoid and one tanh cover them.
+    79 nodes after ORT's optimisation where the per-stack graph had 114. Needs stacks of one depth.
     """
 
     def __init__(self, model: StyleERD) -> None:
         super().__init__()
         self.model = model
-        hidden = model.cfg.latent
-        layers = [lstm.num_layers for lstm in model.stacks]
-        offsets = np.cumsum([0] + [2 * n * hidden for n in layers])
-        self.layer_stacks: list[tuple[int, int]] = []  # per layer: the stacks that have it (a range)
-        read, order = [], []
-        for layer in range(max(layers)):
-            stacks = [k for k, n in enumerate(layers) if n > layer]
-            first, last = stacks[0], stacks[-1] + 1
-            assert stacks == list(range(first, last)), "stacks with a layer must be consecutive"
-            self.layer_stacks.append((first, last))
-            for part in (0, 1):  # h, c
-                index = np.stack([offsets[k] + part * layers[k] * hidden + layer * hidden + np.arange(hidden)
-                                  for k in stacks])
-                read.append(torch.from_numpy(index))
-                order.append(index.ravel())
-        self.read = read  # per (layer, h/c): state columns, (stacks, hidden)
-        self.register_buffer("unshuffle", torch.from_numpy(np.argsort(np.concatenate(order))),
-                             persistent=False)
-        for layer, (first, last) in enumerate(self.layer_stacks):
-            stacks = model.stacks[first:last]
-            w_ih = torch.stack([getattr(m, f"weight_ih_l{layer}") for m in stacks]).detach()
-            w_hh = torch.stack([getattr(m, f"weight_hh_l{layer}") for m in stacks]).detach()
-            bias = torch.stack([getattr(m, f"bias_ih_l{layer}") + getattr(m, f"bias_hh_l{layer}")
-                                for m in stacks]).detach()
+        depths = {lstm.num_layers for lstm in model.stacks}
+        if len(depths) != 1:
+            raise ValueError(f"the step graph needs LSTM stacks of one depth, got {sorted(depths)} layers "
+                             "(ErdConfig neutral_layers and style_layers)")
+        self.layers, self.hidden, self.stacks = depths.pop(), model.cfg.latent, len(model.stacks)
+        h = self.hidden
+        order = torch.cat([torch.arange(0, 2 * h), torch.arange(3 * h, 4 * h), torch.arange(2 * h, 3 * h)])
+
+        def stacked(name: str) -> torch.Tensor:  # (stacks, 4 h, ...) in i, f, o, g order
+            return torch.stack([getattr(m, name) for m in model.stacks]).detach()[:, order]
+
+        for layer in range(self.layers):
+            w_ih, w_hh = stacked(f"weight_ih_l{layer}"), stacked(f"weight_hh_l{layer}")
+            bias = stacked(f"bias_ih_l{layer}") + stacked(f"bias_hh_l{layer}")
             if layer == 0:  # every stack reads the latent code: one product for all of them
-                self.register_buffer("w_in", w_ih.flatten(0, 1).T.contiguous(), persistent=False)
-            else:
+                self.register_buffer("w_in0", w_ih.permute(2, 0, 1).flatten(1).contiguous(), persistent=False)
+                self.register_buffer("bias0", bias.flatten(), persistent=False)
+            else:  # each stack reads its own layer below
                 self.register_buffer(f"w_in{layer}", w_ih.transpose(1, 2).contiguous(), persistent=False)
+                self.register_buffer(f"bias{layer}", bias[:, None], persistent=False)
             self.register_buffer(f"w_rec{layer}", w_hh.transpose(1, 2).contiguous(), persistent=False)
-            self.register_buffer(f"bias{layer}", bias[:, None], persistent=False)
 
     def forward(self, features: torch.Tensor, style: torch.Tensor, alpha: torch.Tensor,
                 state: torch.Tensor, reset: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        m, hidden = self.model, self.model.cfg.latent
+        m, h, layers = self.model, self.hidden, self.layers
         # where, not a blend: a reset must also clear a state holding garbage (NaN)
         state = torch.where(reset > 0.5, m.initial_state(1), state)
+        # per stack: h of every layer, then c of every layer; each (B, stacks, 1, hidden)
+        parts = state.reshape(-1, self.stacks, 2 * layers, h).split(1, dim=2)
         z = m.encoder((features - m.in_mean) / m.in_std)  # (B, latent)
-        new, tops = [], []  # tops: (first stack, h) of the stacks whose last layer this is
-        below = z  # the layer below's h (layer 0 reads the latent code instead)
-        for layer, (first, last) in enumerate(self.layer_stacks):
-            h = state[:, self.read[2 * layer]].transpose(0, 1)  # (stacks, B, hidden)
-            c = state[:, self.read[2 * layer + 1]].transpose(0, 1)
-            if layer == 0:
-                x = (z @ self.w_in).reshape(-1, last - first, 4 * hidden).transpose(0, 1)
-            else:  # a stack with this layer had the one below: a range of the layer below's
-                below_first = self.layer_stacks[layer - 1][0]
-                x = below[first - below_first:last - below_first] @ getattr(self, f"w_in{layer}")
-            gates = x + h @ getattr(self, f"w_rec{layer}") + getattr(self, f"bias{layer}")
-            i, f, g, o = gates.chunk(4, dim=-1)  # PyTorch's gate order
-            c = torch.sigmoid(f) * c + torch.sigmoid(i) * torch.tanh(g)
-            h = torch.sigmoid(o) * torch.tanh(c)
-            new += [h.transpose(0, 1).flatten(1), c.transpose(0, 1).flatten(1)]
-            ends = self.layer_stacks[layer + 1] if layer + 1 < len(self.layer_stacks) else (last, last)
-            tops += [(k, h[k - first:stop - first]) for k, stop in ((first, ends[0]), (ends[1], last))
-                     if stop > k]
-            below = h
-        top = torch.cat([h for _, h in sorted(tops, key=lambda t: t[0])])  # (stacks, B, hidden)
-        weights = (style.index_select(1, m.branch_columns) * alpha).T[..., None]  # (branches, B, 1)
-        latent = top[0] + (weights * top[1:]).sum(0)
-        return m._decode(latent, style, alpha), torch.cat(new, dim=1)[:, self.unshuffle]
+        x = (z @ self.w_in0 + self.bias0).reshape(-1, self.stacks, 1, 4 * h)
+        hs, cs = [], []
+        for layer in range(layers):
+            if layer:
+                x = hs[-1] @ getattr(self, f"w_in{layer}") + getattr(self, f"bias{layer}")
+            gates = x + parts[layer] @ getattr(self, f"w_rec{layer}")  # (B, stacks, 1, 4 hidden)
+            i, f, o = torch.sigmoid(gates[..., :3 * h]).split(h, dim=-1)
+            c = f * parts[layers + layer] + i * torch.tanh(gates[..., 3 * h:])
+            hs.append(o * torch.tanh(c))
+            cs.append(c)
+        weights = torch.cat([torch.ones_like(alpha), style.index_select(1, m.branch_columns) * alpha], dim=1)
+        latent = (weights[:, :, None, None] * hs[-1]).sum(1).flatten(1)  # neutral + weighted residuals
+        return m._decode(latent, style, alpha), torch.cat(hs + cs, dim=2).flatten(1)
 
 
 # --- critics (training only) -----------------------------------------------------------------------

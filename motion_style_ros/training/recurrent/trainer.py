@@ -104,7 +104,7 @@ class Config(DataConfig):
 
 def tiny_config(**changes) -> Config:
     """A small, fast configuration with the real data path (tests)."""
-    return replace(Config(encoder=(16,), latent=8, neutral_layers=2, style_layers=1, decoder=(16,),
+    return replace(Config(encoder=(16,), latent=8, neutral_layers=2, style_layers=2, decoder=(16,),
                           batch=4, crops=1, crop_frames=12, dis_widths=(16,), dis_features=4,
                           content_widths=(16,), content_iterations=5, content_batch=4, warmup=10),
                    **changes)
