@@ -188,7 +188,7 @@ def test_bad_references_are_rejected_with_a_reason(exported, datasets, tmp_path)
         session.set_reference(broken)
     with pytest.raises(MotionStyleError, match="a reference must be a Motion"):
         session.set_reference("walk.bvh")
-    with pytest.raises(MotionStyleError, match="style bank needs backend stgcn"):
+    with pytest.raises(MotionStyleError, match="bank.json: no such style bank"):
         MostSession(exported, bank=tmp_path / "bank.json")
     with pytest.raises(MotionStyleError, match="lookahead must be 0 to 15 frames"):
         MostSession(exported, window=16, lookahead=16)
@@ -205,3 +205,53 @@ def test_a_negative_content_weight_is_one_line_before_any_data_is_read(tmp_path)
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert "--content-weight must be 0 or more, got -0.5" in out.stderr
     assert not any(tmp_path.iterdir())
+
+
+def test_a_style_enrolled_from_clips_is_a_target_with_their_features(exported, datasets, tmp_path):
+    from motion_style_ros.runtime import style_bank
+
+    takes = ["dataset-2_walk_youthful_001", "dataset-2_run_youthful_001"]
+    clips = [bandai(datasets, name) for name in takes]
+    session = MostSession(exported, window=16, hop=4, lookahead=4)
+    with pytest.raises(MotionStyleError, match="--head reads stgcn's encoder heads"):
+        session.enrol(clips, takes, head="elderly")
+    entry = session.enrol(clips, takes)
+    assert entry.head == style_bank.FEATURES and entry.frames == sum(m.n_frames for m in clips)  # 30 fps
+    own = [session.reference_codes(m)[0] for m in clips]
+    np.testing.assert_allclose(np.array(entry.code).reshape(own[0].shape),
+                               np.average(own, axis=0, weights=[m.n_frames for m in clips]), atol=1e-9)
+    assert set(entry.probabilities) <= set(session.styles) and 0 < sum(entry.probabilities.values()) <= 1 + 1e-9
+    bank = style_bank.path_beside(exported).with_name("mine.json")
+    style_bank.write(bank, {"bouncy": entry}, "most", session.model_digest)
+
+    enrolled = MostSession(exported, window=16, hop=4, lookahead=4, bank=bank)
+    assert enrolled.styles == [*session.styles, "bouncy"]
+    np.testing.assert_allclose(enrolled.features()[-1].ravel(), entry.code, atol=1e-6)  # the file keeps 7 decimals
+    walk = bandai(datasets, "dataset-2_walk-turn-right_masculine_003")[:90]
+    out, normal = enrolled.run(walk, "bouncy"), enrolled.run(walk, "normal")
+    assert np.isfinite(out.positions).all()
+    assert np.abs(encode(out)[:, 4:130] - encode(normal)[:, 4:130]).max() > 1e-4  # its features are used
+    # a bank is for the model it was made with
+    style_bank.write(bank, {"bouncy": entry}, "most", "0" * 16)
+    with pytest.raises(MotionStyleError, match="made for another model"):
+        MostSession(exported, bank=bank)
+
+
+def test_the_style_cli_enrols_for_most_and_refuses_a_model_without_a_style_encoder(exported, datasets, tmp_path):
+    import subprocess
+    import sys
+
+    bank = tmp_path / "mine.json"
+    files = [str(datasets / BANDAI / f"{n}.bvh") for n in ("dataset-2_walk_youthful_001", "dataset-2_run_youthful_001")]
+
+    def cli(model, *args):
+        return subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "style", *args, "--model",
+                               str(model), "--bank", str(bank)], capture_output=True, text=True)
+
+    added = cli(exported, "add", "bouncy", *files)
+    assert added.returncode == 0, added.stderr
+    assert "bouncy: 2 clips" in added.stdout and "read under 'features'" in added.stdout
+    assert MostSession(exported, bank=bank).styles[-1] == "bouncy"
+    refused = cli("style_erd.onnx", "list")
+    assert refused.returncode == 2 and "a style bank needs a stgcn or most model" in refused.stderr
+    assert "Traceback" not in refused.stderr

@@ -63,14 +63,14 @@ def add_parser(subparsers):
                         "SC++; local joint positions, m) with references of the same and of another "
                         "content, on one seeded pair per test take")
     p.add_argument("--enrol", default=None, metavar="STYLE",
-                   help="instead (stgcn): enrol STYLE, a Bandai style the model was not trained on, "
+                   help="instead (stgcn, most): enrol STYLE, a Bandai style the model was not trained on, "
                         "into a style bank from --enrol-clips of its train takes, and score how "
                         "often both judge panels recognise it in dataset-2 test takes and CMU/Xia "
                         "clips restyled into it; writes enrolment.json (--record: as enrolment)")
     p.add_argument("--enrol-clips", type=int, default=4, metavar="K",
                    help="--enrol: clips to enrol from (default: 4)")
     p.add_argument("--enrol-head", default=None, metavar="HEAD",
-                   help="--enrol: the encoder head to read (a style, or mix; default: the closest)")
+                   help="--enrol, stgcn: the encoder head to read (a style, or mix; default: the closest)")
     p.add_argument("--controls", action="store_true",
                    help="instead (stgcn): the cost of each lookahead (0, 8, 16, 32), the "
                         "diversity of latent seeds against styles, and how closely alpha 0 "
@@ -420,12 +420,12 @@ def run_enrolment(args: argparse.Namespace) -> int:
     from motion_style_ros.evaluation import windowed
     from motion_style_ros.evaluation.judges import Judge
 
-    if args.stylizer != ["stgcn"]:
-        raise MotionStyleError("--enrol needs the backend with a style encoder: give --stylizer stgcn")
+    if len(args.stylizer) != 1:
+        raise MotionStyleError("--enrol scores one backend: give --stylizer stgcn or --stylizer most")
     out = Path(args.out)
     judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
-    report = windowed.enrolment(args.enrol, out, args.model or windowed.DEFAULT_MODEL, args.enrol_clips,
-                                args.seed, judges, progress=not args.quiet, head=args.enrol_head)
+    report = windowed.enrolment(args.enrol, out, args.model, args.enrol_clips, args.seed, judges,
+                                progress=not args.quiet, head=args.enrol_head, backend=args.stylizer[0])
     print(f"{args.enrol}: enrolled from {', '.join(report['enrolled_from'])} under {report['head']!r}")
     for key in ("bandai2_test", "unseen"):
         print(f"{key}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report[key].items()))

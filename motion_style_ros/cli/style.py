@@ -3,12 +3,13 @@
 
 def add_parser(subparsers):
     p = subparsers.add_parser(
-        "style", help="enrol, list and remove your own styles (stgcn style bank)",
-        description="A style bank holds styles enrolled from a few clips for a model that takes "
-                    "style codes (the stgcn backend), without retraining: the style encoder's code "
-                    "of the clips, averaged. It is a JSON file beside the model (stgcn_styles.json) "
-                    "that the sessions and the stylizer node read, so target_style accepts the new "
-                    "name. Clips are BVH files of any humanoid rig the package retargets.",
+        "style", help="enrol, list and remove your own styles (stgcn and most style banks)",
+        description="A style bank holds styles enrolled from a few clips, without retraining, for a "
+                    "model with a style encoder: stgcn (the encoder's code of the clips) or most "
+                    "(the clips' own style features), averaged over the clips. It is a JSON file "
+                    "beside the model (stgcn_styles.json, most_styles.json) that the sessions and "
+                    "the stylizer node read, so target_style accepts the new name. Clips are BVH "
+                    "files of any humanoid rig the package retargets.",
     )
     actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     add = actions.add_parser("add", help="enrol a style from clips of it",
@@ -17,16 +18,16 @@ def add_parser(subparsers):
     add.add_argument("name", metavar="NAME", help="the new style's name (lowercase letters, digits, - and _)")
     add.add_argument("clips", metavar="CLIP.bvh", nargs="+", help="clips of the style")
     add.add_argument("--head", default=None, metavar="STYLE",
-                     help="read the codes under this known style's head, or 'mix': every head's "
-                          "code weighted by the classifier's probabilities (default: the style the "
-                          "clips are closest to, by the encoder's classifier)")
+                     help="stgcn: read the codes under this known style's head, or 'mix': every "
+                          "head's code weighted by the classifier's probabilities (default: the style "
+                          "the clips are closest to, by the encoder's classifier)")
     add.add_argument("--replace", action="store_true", help="replace NAME if the bank has it")
     listing = actions.add_parser("list", help="the styles of a model and its bank")
     remove = actions.add_parser("remove", help="remove an enrolled style")
     remove.add_argument("name", metavar="NAME")
     for sub in (add, listing, remove):
         sub.add_argument("--model", default="stgcn.onnx",
-                         help="the model: a shipped file name or a path (default: stgcn.onnx)")
+                         help="the model, stgcn or most: a shipped file name or a path (default: stgcn.onnx)")
         sub.add_argument("--bank", default=None, metavar="FILE",
                          help="the style bank file (default: <model>_styles.json beside the model)")
         sub.set_defaults(func=run)
@@ -38,11 +39,18 @@ def run(args) -> int:
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime import style_bank
     from motion_style_ros.io.canonical import canonical_clip
-    from motion_style_ros.runtime.onnx_model import model_path
+    from motion_style_ros.runtime.most import MostSession
+    from motion_style_ros.runtime.onnx_model import model_path, read_card
     from motion_style_ros.runtime.windowed import WindowedSession
 
-    bank = Path(args.bank) if args.bank else style_bank.path_beside(model_path(args.model))
-    session = WindowedSession(args.model, lookahead=0, bank=bank if bank.exists() else None)  # its encoder only
+    path = model_path(args.model)
+    kind = read_card(path).get("kind")
+    sessions = {"windowed": WindowedSession, "most": MostSession}  # the models with a style encoder
+    if kind not in sessions:
+        raise MotionStyleError(f"{path.name}: a {kind} model; a style bank needs a stgcn or most model "
+                               "(a style encoder)")
+    bank = Path(args.bank) if args.bank else style_bank.path_beside(path)
+    session = sessions[kind](path, lookahead=0, bank=bank if bank.exists() else None)  # its encoder only
     known = session.styles[: len(session.card["styles"])]
     entries = dict(session.bank)
     if args.action == "list":

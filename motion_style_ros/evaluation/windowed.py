@@ -203,20 +203,27 @@ def bench_report(motion: Motion, backend: str = "stgcn", model: str | Path | Non
     return "\n".join(lines), figures
 
 
-def enrolment(style: str, out_dir: Path, model: str | Path = DEFAULT_MODEL, clips: int = 4, seed: int = 0,
+def enrolment(style: str, out_dir: Path, model: str | Path | None = None, clips: int = 4, seed: int = 0,
               judges: list[Judge] | None = None, root: Path | None = None, progress: bool = True,
-              head: str | None = None) -> dict:
+              head: str | None = None, backend: str = "stgcn") -> dict:
     """A style the model does not know, enrolled into a style bank from ``clips`` of its Bandai
     train takes (distinct contents, chosen with ``seed``), then asked of every dataset-2 test take
     (one per content and style) and every CMU and Xia neutral clip: how often each judge panel
-    recognises it, and how much the style's probability rose from the source's."""
+    recognises it, and how much the style's probability rose from the source's. ``backend``: one
+    with a style bank (stgcn, most), run with the published settings."""
     from motion_style_ros.evaluation.harness import held_out_clips
     from motion_style_ros.evaluation.unseen import _recognition, neutral_clips
     from motion_style_ros.io.datasets import index_bandai, load_bandai
     from motion_style_ros.runtime import style_bank
     from motion_style_ros.runtime.offline import stylizer
 
-    session = WindowedSession(model)
+    made_by = backends.backend(backend)
+    if not made_by.style_bank:
+        raise MotionStyleError("--enrol needs a backend with a style bank: "
+                               + " or ".join(backends.with_feature("style_bank")))
+    model = model or made_by.default_model
+    settings = made_by.settings(PUBLISHED)
+    session = made_by.session_class()(model, **settings)
     if style in session.styles[: len(session.card["styles"])]:
         raise MotionStyleError(f"{style!r} is a style the model was trained on; enrol one it has not seen")
     takes = sorted((i for i in index_bandai(root) if i.style == style and i.split == "train"),
@@ -230,7 +237,7 @@ def enrolment(style: str, out_dir: Path, model: str | Path = DEFAULT_MODEL, clip
     out_dir.mkdir(parents=True, exist_ok=True)
     bank = out_dir / f"enrolled_{style}.json"
     style_bank.write(bank, {style: entry}, session.card["name"], session.model_digest)
-    enrolled = stylizer("stgcn", str(model), bank=bank, **PUBLISHED)  # a session per input rate
+    enrolled = stylizer(backend, str(model), bank=bank, **settings)  # a session per input rate
     test = held_out_clips(root, progress=progress)
     one_per_cell = {(i.content, i.style): m for i, m in sorted(test, key=lambda c: c[0].name)}
     sources = {"bandai2_test": list(one_per_cell.values()),

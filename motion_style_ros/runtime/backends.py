@@ -42,7 +42,8 @@ BACKENDS: dict[str, Backend] = {
                      latent_seeds=True, reference_clips=True, style_bank=True, lookahead=True),
     "most": Backend("most", "MoST (Kim et al. 2024): windows restyled like a reference clip of any action or a "
                     "style's mean features, blended by overlap-add", "most.onnx",
-                    "motion_style_ros.runtime.most:MostSession", reference_clips=True, lookahead=True),
+                    "motion_style_ros.runtime.most:MostSession", reference_clips=True, style_bank=True,
+                    lookahead=True),
     "saae": Backend("saae", "sequence adversarial autoencoder (ESANN 2018): windows re-decoded with a style "
                     "label (Model1) or a reference clip's style code (Model2), blended by overlap-add",
                     "saae_model2_5d.onnx", "motion_style_ros.runtime.saae:SaaeSession",

@@ -19,6 +19,9 @@ session) around a :class:`MostStep`, the step graph of the contract :data:`~moti
   ``blend_seconds`` like style and alpha.
 - **Alpha.** Inside the graph, the style vector moves from the window's own (the window restyled
   like itself: its reconstruction) to the target's by alpha.
+- **Style bank.** Styles enrolled from a user's clips (:mod:`~motion_style_ros.runtime.style_bank`:
+  the clips' own style features, averaged) come after the card's in ``styles``, each with its
+  features in place of a mean.
 - **Foot locking.** Feet are locked on the input frame each output frame was made from.
 """
 
@@ -31,6 +34,7 @@ import numpy as np
 from motion_style_ros.core.features import encode
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime import style_bank
 from motion_style_ros.runtime.contract import MOST, MOST_STYLE, check_card
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path
 from motion_style_ros.runtime.windowed import BanklessSession, OverlapWindows
@@ -45,18 +49,25 @@ class MostStep(OverlapWindows):
     frame is ``lookahead`` model frames behind its input."""
 
     def __init__(self, path: Path, card: dict, threads: int, window: int | None, hop: int,
-                 lookahead: int) -> None:
+                 lookahead: int, bank: str | Path | None = None) -> None:
         check_card(card, path, "most")
         self.card = card
         self._sizes(window, int(card["window"]), hop, lookahead)
         self.model = OnnxModel(path, threads)
         MOST.check(self.model.input_names, path, "MoST step graph")
         files = card["files"]
-        self.style_encoder = OnnxModel(model_path(str(path.with_name(files["style_encoder"]))), threads)
+        encoder = model_path(str(path.with_name(files["style_encoder"])))
+        self.style_encoder = OnnxModel(encoder, threads)
         MOST_STYLE.check(self.style_encoder.input_names, path, "MoST style encoder")
-        self.styles = list(card["styles"])
-        self.means = _read_means(path.with_name(files["style_means"]), len(self.styles),
-                                 (len(card["parts"]), int(card["feature_dim"])))
+        known = list(card["styles"])
+        shape = (2, len(card["parts"]), int(card["feature_dim"]))
+        self.model_digest = style_bank.digest([path, encoder])
+        self.bank_path, self.bank = style_bank.open_bank(bank, path, self.model_digest, int(np.prod(shape)),
+                                                         known, [style_bank.FEATURES])
+        self.styles, self.known = [*known, *self.bank], len(known)
+        enrolled = np.array([e.code for e in self.bank.values()]).reshape((len(self.bank), *shape))
+        self.means = np.concatenate([_read_means(path.with_name(files["style_means"]), len(known), shape[1:]),
+                                     enrolled])
         self._layout(card)
 
     def start(self, performers: int, blend_seconds: float) -> None:
@@ -93,8 +104,6 @@ class MostSession(BanklessSession):
 
     STEP = MostStep
     DEFAULT_MODEL = DEFAULT_MODEL
-    NO_BANK = ("a style bank needs backend stgcn (style codes); the most backend takes a reference clip "
-               "(set_reference) instead")
 
     @property
     def model(self) -> OnnxModel:
@@ -105,6 +114,20 @@ class MostSession(BanklessSession):
     def style_encoder(self) -> OnnxModel:
         """The style side of the encoder, run once per reference clip."""
         return self.windows.style_encoder
+
+    @property
+    def bank(self) -> dict[str, style_bank.Entry]:
+        """The enrolled styles (after the card's in ``styles``)."""
+        return self.windows.bank
+
+    @property
+    def bank_path(self) -> Path | None:
+        return self.windows.bank_path
+
+    @property
+    def model_digest(self) -> str:
+        """The digest a style bank of this model records."""
+        return self.windows.model_digest
 
     # --- controls ---------------------------------------------------------------------------
 
@@ -125,3 +148,15 @@ class MostSession(BanklessSession):
         clip = np.stack([out["style"].mean(axis=0), out["pooled"].mean(axis=0)]).astype(np.float64)
         distance = ((self.windows.means - clip) ** 2).sum(axis=(1, 2, 3))
         return clip, -distance
+
+    def enrol(self, clips: list[Motion], names: list[str], head: str | None = None) -> style_bank.Entry:
+        """A bank entry from a few clips of one style: their own style features (see
+        :mod:`~motion_style_ros.runtime.style_bank`); ``head`` is stgcn's and must be None."""
+        if head is not None:
+            raise MotionStyleError("--head reads stgcn's encoder heads; a most entry is the clips' own "
+                                   "style features")
+        read = [self.reference_codes(m) for m in clips]
+        frames = [round(m.n_frames * self.fps / m.fps) for m in clips]
+        known = self.windows.known
+        return style_bank.enrol_features([f for f, _ in read], [-near[:known] for _, near in read], frames,
+                                         names, self.styles[:known])

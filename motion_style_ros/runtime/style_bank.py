@@ -1,13 +1,18 @@
-"""A style bank: styles a user enrols from a few clips of their own, for a model that takes style
-codes (the windowed ST-GCN backend), without retraining.
+"""A style bank: styles a user enrols from a few clips of their own, for a model that takes its
+style from a code or from features of a clip (the stgcn and most backends), without retraining.
 
 A bank is a JSON file beside the model (``stgcn.onnx`` -> ``stgcn_styles.json``; any path with
-``--bank`` or the node's ``style_bank`` parameter). Each entry is the style encoder's code of the
-enrolled clips, averaged over the clips, under one head of the encoder: the known style the
-encoder's classifier finds the clips closest to (their mean probability), unless the user names one;
-or (``mix``) every head's code weighted by the classifier's probabilities.
-Codes only mean something to the generator they were made with, so the bank records a digest of
-the model's files and is refused by any other model.
+``--bank`` or the node's ``style_bank`` parameter). An entry holds what the model's style encoder
+reads from the enrolled clips, averaged over the clips (weighted by their frames):
+
+- **stgcn**: the code under one head of the encoder: the known style the encoder's classifier
+  finds the clips closest to (their mean probability), unless the user names one; or (``mix``)
+  every head's code weighted by the classifier's probabilities.
+- **most**: the clips' own style features (``features``: body-part style and mean content
+  features, as a reference clip gives them); MoST reads style from any motion, so no head.
+
+Codes only mean something to the model they were made with, so the bank records a digest of the
+model's files and is refused by any other model.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from motion_style_ros.errors import MotionStyleError
 
 VERSION = 1
 MIX = "mix"  # the head of an entry made from every head's code
+FEATURES = "features"  # the head of an entry that holds the clips' own style features (most)
 _NAME = re.compile(r"[a-z0-9][a-z0-9_-]{0,39}")
 
 
@@ -35,7 +41,9 @@ class Entry:
     head: str  # the encoder head the code was read from (a style of the model)
     clips: tuple[str, ...]  # the file names it was enrolled from
     frames: int  # model frames over all clips
-    probabilities: dict[str, float]  # the classifier's mean probabilities of the heads it used
+    # how close the clips are to the model's styles (the three closest): the classifier's mean
+    # probabilities (stgcn), or shares of the inverse squared feature distances (most)
+    probabilities: dict[str, float]
 
 
 def path_beside(model: Path) -> Path:
@@ -61,8 +69,11 @@ def check_name(name: str, known: list[str]) -> str:
     return name
 
 
-def read(path: Path, model_digest: str, style_dim: int, styles: list[str]) -> dict[str, Entry]:
-    """The entries of a bank for the model with this digest, or a one-line reason."""
+def read(path: Path, model_digest: str, style_dim: int, styles: list[str],
+         heads: list[str] | None = None) -> dict[str, Entry]:
+    """The entries of a bank for the model with this digest (codes of ``style_dim`` values read
+    under one of ``heads``, default the styles and ``mix``), or a one-line reason."""
+    heads = [*styles, MIX] if heads is None else heads
     try:
         raw = json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -81,11 +92,20 @@ def read(path: Path, model_digest: str, style_dim: int, styles: list[str]) -> di
                           int(e["frames"]), {str(k): float(v) for k, v in e["probabilities"].items()})
         except (KeyError, TypeError, ValueError):
             raise MotionStyleError(f"{path}: style {name!r} is not a valid entry") from None
-        if len(entry.code) != style_dim or not np.isfinite(entry.code).all() or entry.head not in [*styles, MIX]:
+        if len(entry.code) != style_dim or not np.isfinite(entry.code).all() or entry.head not in heads:
             raise MotionStyleError(f"{path}: style {name!r} has no finite {style_dim}-value code "
                                    "from one of the model's heads")
         entries[check_name(name, styles)] = entry
     return entries
+
+
+def open_bank(bank: str | Path | None, model: Path, model_digest: str, style_dim: int, styles: list[str],
+              heads: list[str] | None = None) -> tuple[Path | None, dict[str, Entry]]:
+    """The bank a session of ``model`` uses (``bank``, else the model's own beside it if there is
+    one; None: none) and its entries (:func:`read`)."""
+    beside = path_beside(model)
+    path = Path(bank) if bank is not None else beside if beside.exists() else None
+    return path, ({} if path is None else read(path, model_digest, style_dim, styles, heads))
 
 
 def write(path: Path, entries: dict[str, Entry], model: str, model_digest: str) -> None:
@@ -124,3 +144,19 @@ def enrol(codes: list[np.ndarray], logits: list[np.ndarray], frames: list[int], 
     top = np.argsort(mean_p)[::-1][:3]
     return Entry(tuple(float(v) for v in code), name, tuple(clips), int(w.sum()),
                  {styles[i]: round(float(mean_p[i]), 4) for i in top})
+
+
+def enrol_features(features: list[np.ndarray], distances: list[np.ndarray], frames: list[int], clips: list[str],
+                   styles: list[str]) -> Entry:
+    """An entry of the clips' own style features (``features`` per clip, any shape; ``distances``
+    ``(S,)`` per clip: its squared distance to each style's mean features), averaged over the clips
+    weighted by their frames."""
+    if not features:
+        raise MotionStyleError("enrolling a style needs at least one clip")
+    w = np.asarray(frames, dtype=float)
+    code = np.einsum("n,nd->d", w, np.stack([f.ravel() for f in features])) / w.sum()
+    near = 1.0 / np.maximum(np.stack(distances), 1e-12)
+    near = (near / near.sum(axis=1, keepdims=True)).mean(axis=0)
+    top = np.argsort(near)[::-1][:3]
+    return Entry(tuple(float(v) for v in code), FEATURES, tuple(clips), int(w.sum()),
+                 {styles[i]: round(float(near[i]), 4) for i in top})

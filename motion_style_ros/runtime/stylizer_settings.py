@@ -53,7 +53,7 @@ PARAMETERS = (
     Parameter("backend", "recurrent", f"stylizer backend: {', '.join(BACKENDS)}"),
     Parameter("window", 0, f"{_WINDOWS}: frames per window (stgcn: a multiple of 4); 0 = the model card's",
               0, 1024),
-    Parameter("style_bank", "", "stgcn: a style bank file of enrolled styles (motion-style style add); "
+    Parameter("style_bank", "", "stgcn, most: a style bank file of enrolled styles (motion-style style add); "
               "'' = the model's own (<model>_styles.json) if there is one"),
     Parameter("hop", DEFAULTS["hop"], f"{_WINDOWS}: model frames between two windows", 1, 1024),
     Parameter("lookahead", DEFAULTS["lookahead"], f"{_WINDOWS}: model frames of the future each output frame "
@@ -130,7 +130,7 @@ def check_start(values: dict) -> Backend:
     spec = BACKENDS[backend]
     if values["style_bank"] and not spec.style_bank:
         raise MotionStyleError(f"parameter style_bank needs backend {' or '.join(with_feature('style_bank'))} "
-                               f"(style codes); {backend} has a fixed set of styles")
+                               f"(styles enrolled from clips); {backend} has a fixed set of styles")
     prefixes = values["performers"]
     if not prefixes or len(set(prefixes)) != len(prefixes):
         raise MotionStyleError(f"parameter performers is {list(prefixes)}; give distinct topic "

@@ -215,10 +215,7 @@ class WindowedStep(OverlapWindows):
         self.style_encoder = OnnxModel(companions["style_encoder"], threads)
         self.model_digest = style_bank.digest([path, companions["style_encoder"]])
         known = list(card["styles"])
-        beside = style_bank.path_beside(path)
-        self.bank_path = Path(bank) if bank is not None else beside if beside.exists() else None
-        self.bank = ({} if self.bank_path is None else
-                     style_bank.read(self.bank_path, self.model_digest, int(card["style_dim"]), known))
+        self.bank_path, self.bank = style_bank.open_bank(bank, path, self.model_digest, int(card["style_dim"]), known)
         self.styles = [*known, *self.bank]
         self.known = len(known)
         self._bank_codes = np.array([e.code for e in self.bank.values()]).reshape(len(self.bank), int(card["style_dim"]))
@@ -325,16 +322,16 @@ class WindowsSession(StreamSession):
 
 
 class BanklessSession(WindowsSession):
-    """A windowed backend's session whose styles are its card's (no seeds, no style bank): the
-    step ``STEP(path, card, threads, window, hop, lookahead)`` of the model ``model`` (default:
-    ``DEFAULT_MODEL``); ``window``, ``hop``, ``lookahead`` as for :class:`WindowedSession`.
-    ``bank`` is taken for the node's sake (it gives one to every windowed backend) and must be
-    None (``NO_BANK`` says why). Until :meth:`set_style`, every performer gets the card's
+    """A windowed backend's session without latent seeds: the step ``STEP(path, card, threads,
+    window, hop, lookahead)`` (with ``bank=`` where ``NO_BANK`` is empty: a style bank file,
+    default the model's own beside it) of the model ``model`` (default: ``DEFAULT_MODEL``);
+    ``window``, ``hop``, ``lookahead`` as for :class:`WindowedSession`. A backend without a bank
+    refuses one with ``NO_BANK``'s reason. Until :meth:`set_style`, every performer gets the card's
     ``neutral_style`` at alpha 1; ``phase_seconds``: as for the stream session."""
 
     STEP: type[OverlapWindows]
     DEFAULT_MODEL: str
-    NO_BANK: str
+    NO_BANK: str = ""  # why this backend takes no style bank ("": it takes one)
 
     def __init__(
         self,
@@ -355,10 +352,11 @@ class BanklessSession(WindowsSession):
         bank: str | Path | None = None,
         phase_seconds: float = 0.0,
     ) -> None:
-        if bank is not None:
+        if bank is not None and self.NO_BANK:
             raise MotionStyleError(self.NO_BANK)
         path = model_path(str(self.DEFAULT_MODEL if model is None else model))
-        windows = self.STEP(path, read_card(path), threads, window, hop, lookahead)
+        windows = self.STEP(path, read_card(path), threads, window, hop, lookahead,
+                            **({} if self.NO_BANK else {"bank": bank}))
         super().__init__(windows, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
                          foot_lock, ground, pipelined, conform, phase_seconds)
 
