@@ -255,3 +255,18 @@ def test_the_style_cli_enrols_for_most_and_refuses_a_model_without_a_style_encod
     refused = cli("style_erd.onnx", "list")
     assert refused.returncode == 2 and "a style bank needs a stgcn or most model" in refused.stderr
     assert "Traceback" not in refused.stderr
+
+
+def test_val_targets_are_styles_that_have_val_takes_when_some_have_none():
+    from motion_style_ros.training.data import Clips
+
+    long, short = np.zeros((20, 3), np.float32), np.zeros((5, 3), np.float32)
+    val = Clips([long, long, short, long], np.array([0, 1, 2, 3]), np.zeros(4, int))  # style 2: too short
+    style = torch.tensor([0, 1, 3, 0, 1, 3] * 20)
+    rng = np.random.default_rng(0)
+    target = most.val_targets(val, style, 5, 16, rng).numpy()  # style 4 has no val take at all
+    assert set(target) <= {0, 1, 3} and (target != style.numpy()).all() and len(set(target)) == 3
+    every = Clips([long] * 3, np.array([0, 1, 2]), np.zeros(3, int))  # all have one: as other_styles
+    a = most.val_targets(every, style[:3] % 3, 3, 16, np.random.default_rng(1))
+    b = training_data.other_styles(style[:3] % 3, 3, np.random.default_rng(1))
+    assert torch.equal(a, b)

@@ -15,7 +15,8 @@ from motion_style_ros.training.most.trainer import (
            style_pairs,
            tiny_config,
            train,
+           val_targets,
 )
 
 __all__ = ["Config", "Trainer", "companions", "export_onnx", "export_random_model", "parity", "style_means",
-           "style_pairs", "tiny_config", "train", "write_model"]
+           "style_pairs", "tiny_config", "train", "val_targets", "write_model"]

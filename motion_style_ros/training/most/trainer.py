@@ -137,6 +137,16 @@ def style_pairs(clips: Clips, length: int, styles: np.ndarray, rng: np.random.Ge
     return torch.from_numpy(np.stack(first)), torch.from_numpy(np.stack(second)), np.array(differ)
 
 
+def val_targets(val: Clips, style: torch.Tensor, n_styles: int, length: int, rng: np.random.Generator
+                ) -> torch.Tensor:
+    """Each val window's target style: another style, among those with a val take of ``length``
+    frames where some style has none (Bandai dataset-1 has no val takes)."""
+    have = np.unique(val.styles[[len(f) >= length for f in val.features]])
+    if len(have) == n_styles:
+        return other_styles(style, n_styles, rng)
+    return torch.from_numpy(np.array([rng.choice(have[have != s]) for s in style.tolist()]))
+
+
 def content_change(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
     """How far the transfer's frame content features ``Y`` moved from the input's, relative to the
     input's own spread, so that scaling the features down cannot shrink it; the input's side is
@@ -203,9 +213,10 @@ class Trainer(ResumableTrainer):
         self.opt_d = torch.optim.Adam(self.dis.parameters(), lr=cfg.lr_dis, betas=cfg.betas,
                                       weight_decay=cfg.weight_decay)
         val_rng = np.random.default_rng([cfg.seed, 3])
-        x, style, _ = windows(data.splits["val"], cfg.window, cfg.val_windows, val_rng)
-        target = other_styles(style, len(data.styles), val_rng)
-        s1, s2, _ = style_pairs(data.splits["val"], cfg.window, target.numpy(), val_rng)
+        val = data.splits["val"]
+        x, style, _ = windows(val, cfg.window, cfg.val_windows, val_rng)
+        target = val_targets(val, style, len(data.styles), cfg.window, val_rng)
+        s1, s2, _ = style_pairs(val, cfg.window, target.numpy(), val_rng)
         self.val_windows = tuple(t.to(self.device) for t in (x, style, target, s1, s2))
         self.in_std = torch.as_tensor(std, dtype=torch.float32, device=self.device)
 
