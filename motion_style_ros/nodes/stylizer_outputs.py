@@ -16,7 +16,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.nodes import joint_state
+from motion_style_ros.nodes import doubles, joint_state
 from motion_style_ros.runtime.performer import PerformerStream
 from motion_style_ros.runtime.trajectory import Chunk
 
@@ -115,6 +115,6 @@ def trajectory(names, chunk: Chunk, frame_id: str) -> JointTrajectory:
     msg.header.frame_id = frame_id
     for offset, positions, velocities in zip(chunk.times_ns, chunk.positions, chunk.velocities):
         msg.points.append(JointTrajectoryPoint(
-            positions=positions.tolist(), velocities=[] if velocities is None else velocities.tolist(),
+            positions=doubles(positions), velocities=[] if velocities is None else doubles(velocities),
             time_from_start=Duration(sec=offset // 1_000_000_000, nanosec=offset % 1_000_000_000)))
     return msg
