@@ -157,7 +157,7 @@ def run_recurrent(args) -> int:
     reference = _reference_step()
     if reference:
         print(f"reference Style-ERD generator (Tao et al.'s architecture at its default size, random weights, "
-              f"torch on {REFERENCE_THREADS} threads, state carried frame by frame): p50 {reference['p50_us']:.0f} us, "
+              f"torch on {reference['threads']} threads, state carried frame by frame): p50 {reference['p50_us']:.0f} us, "
               f"p99 {reference['p99_us']:.0f} us; its step / this package's whole model frame (p50): "
               f"{reference['p50_us'] / frame['p50_us']:.1f}x")
     if args.record:
@@ -198,6 +198,9 @@ def run_windows(args) -> int:
     clip = canonical_clip(args.clip) if args.clip else synthetic_motion("walk", 30.0, 10.0)
     report, figures = bench_report(clip, args.backend, args.model, hops, args.lookahead, args.threads)
     print(report)
+    if args.backend == "stgcn":  # the reference's per-frame cost beside this package's at hop 4
+        line, figures["reference_window"] = _reference_window(figures["window_ms_1_performers"]["p50"] / 4)
+        print(line)
     if args.record:
         figures = {"command": "motion-style " + shlex.join(sys.argv[1:]), "cpus": os.cpu_count(),
                    "load_average": os.getloadavg()[0], **figures}
@@ -205,14 +208,30 @@ def run_windows(args) -> int:
     return 0
 
 
-REFERENCE_THREADS = 2  # as the reference code runs on a CPU by default (torch's threads, 2 cores here)
+def _reference_window(per_frame_ms: float) -> tuple[str, dict | None]:
+    """The bench line and figures of one pass of the reference ST-GCN generator
+    (:mod:`motion_style_ros.models.reference_stgcn`) on its default test clip, set against
+    ``per_frame_ms``, this package's per-frame amortised cost at hop 4; not timed without torch."""
+    try:
+        from motion_style_ros.models.reference_stgcn import REFERENCE_THREADS, reference_window_times
+    except ModuleNotFoundError:
+        return "torch not installed: the reference ST-GCN generator is not timed", None
+    p50, p99, frames = reference_window_times(REFERENCE_THREADS)
+    ratio = p50 / frames / per_frame_ms
+    line = (f"reference ST-GCN generator (Park et al.'s architecture at its default size, random weights, "
+            f"torch on {REFERENCE_THREADS} threads, one {frames}-frame clip, offline): p50 {p50:.1f} ms, p99 "
+            f"{p99:.1f} ms; per frame {p50 / frames:.3f} ms (p99 {p99 / frames:.3f}); its per-frame cost / this "
+            f"package's per-frame amortised at hop 4 (p50): {ratio:.2f}x")
+    return line, {"p50_ms": round(p50, 3), "p99_ms": round(p99, 3), "frames": frames,
+                  "per_frame_p50_ms": round(p50 / frames, 4), "per_frame_p99_ms": round(p99 / frames, 4),
+                  "threads": REFERENCE_THREADS, "ratio_to_hop_4": round(ratio, 2)}
 
 
 def _reference_step() -> dict | None:
     """p50/p99 (us) of one streaming step of the reference Style-ERD generator
     (:mod:`motion_style_ros.models.reference_erd`), or None without torch."""
     try:
-        from motion_style_ros.models.reference_erd import reference_step_times
+        from motion_style_ros.models.reference_erd import REFERENCE_THREADS, reference_step_times
     except ModuleNotFoundError:
         print("torch not installed: the reference generator is not timed")
         return None

@@ -60,6 +60,9 @@ import torch
 from torch import nn
 
 State = list[tuple[torch.Tensor, torch.Tensor]]
+# torch threads the references are timed on: their code runs on a CPU with torch's default threads
+# (2 cores here); bench recurrent and bench stgcn both use it
+REFERENCE_THREADS = 2
 
 
 @dataclass(frozen=True)
@@ -217,7 +220,7 @@ class ReferenceStream:
         return out[0, 0]
 
 
-def reference_step_times(threads: int = 2, calls: int = 2000,
+def reference_step_times(threads: int = REFERENCE_THREADS, calls: int = 2000,
                          warmup: int = 100) -> tuple[float, float]:
     """``(p50, p99)`` microseconds of one :meth:`ReferenceStream.step` (batch 1, default size,
     test-time path) under ``torch.inference_mode()`` with ``threads`` torch threads; the previous
