@@ -506,8 +506,10 @@ def test_the_stylized_stream_mapped_onto_a_real_humanoid(ros_env, model, recorde
         states = listener.subscribe("/robot/stylized/joint_states", qos=RELIABLE)
         robot = listener.subscribe("/robot/stylized/robot/joint_states", qos=RELIABLE)
         chunks = listener.subscribe("/robot/stylized/robot/trajectory", JointTrajectory, RELIABLE)
-        listener.spin_until(lambda: publisher.get_subscription_count() and
-                            listener.subscriptions["/robot/stylized/robot/joint_states"].get_publisher_count(),
+        # every subscription matched before the first frame: a reliable volatile topic does not
+        # replay a message published before its reader matched (CI once lost the first state)
+        listener.spin_until(lambda: publisher.get_subscription_count() and all(
+                            sub.get_publisher_count() for sub in listener.subscriptions.values()),
                             "the stylizer", procs=[proc])
         for stamp_ns, values in recorded[:90]:
             publisher.publish(message(stamp_ns, LAYOUT.names, values))
