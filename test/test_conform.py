@@ -4,8 +4,9 @@ import numpy as np
 
 from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.conform import (
-    ANKLES, ARM_JOINTS, CHAINS, UNROLLED, StreamGround, StreamRolls, apply_rolls, arms_hang, clip_rolls,
-    conform_rolls, ground, planted_ankle_height,
+    ANKLES, ARM_JOINTS, CHAINS, ROLL_EVIDENCE, ROLL_MIN_FRAMES, ROLL_SURE_FRAMES, UNROLLED, StreamGround,
+    StreamRolls, apply_rolls, arm_moments, arms_hang, clip_rolls, conform_rolls, ground, planted_ankle_height,
+    roll_model,
 )
 from motion_style_ros.core.resample import resample
 from motion_style_ros.core.synthetic import KINDS, synthetic_motion
@@ -106,6 +107,60 @@ def test_rolls_undo_exactly_and_leave_positions_alone():
     assert np.abs(rot.angle_between(back, motion.rotations)).max() < 1e-6
     moved = type(motion)(motion.skeleton, rolled, motion.positions, motion.fps)
     assert np.abs(moved.global_positions() - motion.global_positions()).max() < 1e-9
+
+
+def numpy_solve(model, second, first, count) -> np.ndarray:
+    """RollModel.solve as numpy array arithmetic (the compiled kernel's specification): every grid
+    pair's cost, the chain's dynamic programme with argmin, the parabola refinement, the evidence."""
+    p, n = count.shape[0], len(CHAINS[0])
+    moments = np.concatenate([second.reshape(p, 8, 81), first], axis=-1)[..., None]
+    c = (model.coefficients @ moments).reshape(p, 8, 5, 5)
+    costs = model.basis @ c @ model.basis.T + count[:, :, None, None] * model.constant[None, :, None, None]
+    chain = costs.reshape((p * len(CHAINS), n) + costs.shape[2:])
+    total, back = chain[:, 0, 0], []
+    for k in range(1, n):
+        candidates = total[:, :, None] + chain[:, k]
+        back.append(np.argmin(candidates, axis=1))
+        total = candidates.min(axis=1)
+    choice = np.zeros((len(chain), n), dtype=int)
+    choice[:, -1] = np.argmin(total, axis=1)
+    rows = np.arange(len(chain))
+    for k in range(n - 1, 0, -1):
+        choice[:, k - 1] = back[k - 1][rows, choice[:, k]]
+    offset = np.zeros(choice.shape)
+    for k in range(n):
+        parent = choice[:, k - 1] if k else np.zeros(len(chain), dtype=int)
+        near = []
+        for d in (-1, 0, 1):
+            b = (choice[:, k] + d) % len(model.angles)
+            near.append(chain[rows, k, parent, b] + (chain[rows, k + 1, b, choice[:, k + 1]] if k < n - 1 else 0.0))
+        curve = near[0] - 2.0 * near[1] + near[2]
+        offset[:, k] = np.clip(0.5 * (near[0] - near[2]) / np.where(curve > 1e-12, curve, np.inf), -0.5, 0.5)
+    frames = count[:, ::n].reshape(-1)
+    gain = (chain[:, :, 0, 0].sum(axis=1) - total.min(axis=1)) / np.maximum(frames, 1)
+    low, high = ROLL_EVIDENCE
+    low = np.where(frames >= ROLL_SURE_FRAMES, low, high - 1e-6)
+    weight = np.clip((gain - low) / (high - low), 0.0, 1.0) * (frames >= ROLL_MIN_FRAMES)
+    rolls = np.angle(np.exp(1j * (model.angles[choice] + offset * model.angles[1])))
+    angles = (weight[:, None] * rolls).reshape(p, 8)
+    angles[:, [ARM_JOINTS.index(j) for j in UNROLLED]] = 0.0
+    return angles
+
+
+def test_the_compiled_roll_solve_is_the_numpy_dynamic_programme():
+    model = roll_model(rotation_stats())
+    walk = synthetic_motion("walk", 30.0, 4.0)
+    joints = [walk.skeleton.index(n) for n in ARM_JOINTS]
+    hang = arms_hang(walk.global_positions(), walk.skeleton)
+    moments = []
+    for degrees in (0.0, 20.0, 40.0, -35.0):  # rigs rolled as a retargeted CMU arm is, and not
+        rolled = apply_rolls(walk.rotations, joints, np.radians(np.linspace(degrees, degrees / 2, 8)), undo=True)
+        for frames in (3, 10, 120):  # all or nothing below ROLL_SURE_FRAMES, then the evidence ramp
+            moments.append(arm_moments(rolled[:frames], hang[:frames], joints))
+    second, first, count = (np.stack(m) for m in zip(*moments))
+    solved = model.solve(second, first, count)
+    assert np.degrees(np.abs(solved)).max() > 20.0  # the rolled rigs are rolled back
+    assert np.abs(solved - numpy_solve(model, second, first, count)).max() < 1e-9
 
 
 def test_synthetic_performers_are_not_rolled():

@@ -148,66 +148,24 @@ class RollModel:
         self.basis = np.stack([np.ones(steps), c, s, np.cos(2 * self.angles), np.sin(2 * self.angles)], axis=1)
         project = np.linalg.pinv(self.basis)  # (5, A): the columns are orthogonal on the grid
         tables = np.concatenate([quadratic, -2.0 * linear], axis=-1).transpose(0, 3, 1, 2)  # (8, 90, A, B)
-        self.coefficients = (project @ tables @ project.T).reshape(len(joints), 90, 25).swapaxes(1, 2)
+        self.coefficients = np.ascontiguousarray(
+            (project @ tables @ project.T).reshape(len(joints), 90, 25).swapaxes(1, 2))
         self.constant = np.square(centre).sum(axis=-1)
-
-    def costs(self, second: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:
-        """``(P, 8, A, B)``: each arm joint's cost at every roll pair, from the moments
-        ``second`` ``(P, 8, 9, 9)``, ``first`` ``(P, 8, 9)`` and frame counts ``(P, 8)``."""
-        p, n = second.shape[:2]
-        moments = np.concatenate([second.reshape(p, n, 81), first], axis=-1)[..., None]
-        coefficients = (self.coefficients @ moments).reshape(p, n, 5, 5)
-        return (self.basis @ coefficients @ self.basis.T
-                + count[:, :, None, None] * self.constant[None, :, None, None])
+        self._unrolled = np.array([name in UNROLLED for name in ARM_JOINTS])
 
     def solve(self, second: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:
         """``(P, 8)``: the rolls (radians, :data:`ARM_JOINTS` order) that make the frames most
-        typical, chosen together along each chain by dynamic programming (its first parent, the
-        chest, keeps its frame), each chain's scaled by how clearly it beats no rolls at all
-        (:data:`ROLL_EVIDENCE`)."""
-        costs = self.costs(second, first, count)
-        p, n, c = len(costs), len(CHAINS[0]), len(CHAINS)
-        chain = costs.reshape((p * c, n) + costs.shape[2:])  # both chains of every performer at once
-        total = chain[:, 0, 0]  # (P * C, B)
-        back = []
-        for k in range(1, n):
-            candidates = total[:, :, None] + chain[:, k]  # (P * C, A, B)
-            back.append(np.argmin(candidates, axis=1))
-            total = candidates.min(axis=1)
-        choice = np.zeros((len(chain), n), dtype=int)
-        choice[:, -1] = np.argmin(total, axis=1)
-        rows = np.arange(len(chain))
-        for k in range(n - 1, 0, -1):
-            choice[:, k - 1] = back[k - 1][rows, choice[:, k]]
-        offset = self._refine(chain, choice)
-        unrolled = chain[:, :, 0, 0].sum(axis=1)
-        frames = count[:, ::n].reshape(-1)
-        gain = (unrolled - total.min(axis=1)) / np.maximum(frames, 1)
+        typical, from the moments ``second`` ``(P, 8, 9, 9)``, ``first`` ``(P, 8, 9)`` and frame
+        counts ``(P, 8)``: chosen together along each chain by dynamic programming (its first
+        parent, the chest, keeps its frame), each joint's refined between grid points by a
+        parabola through its chain's cost (its neighbours' rolls held), so that a live estimate and
+        a whole clip's differ by less than a grid step, and each chain's scaled by how clearly it
+        beats no rolls at all (:data:`ROLL_EVIDENCE`; :func:`~motion_style_ros.core.kernels.solve_rolls`)."""
         low, high = ROLL_EVIDENCE
-        low = np.where(frames >= ROLL_SURE_FRAMES, low, high - 1e-6)
-        weight = np.clip((gain - low) / (high - low), 0.0, 1.0) * (frames >= ROLL_MIN_FRAMES)
-        step = self.angles[1]
-        rolls = np.angle(np.exp(1j * (self.angles[choice] + offset * step)))  # the short way
-        angles = (weight[:, None] * rolls).reshape(p, c * n)
-        angles[:, [ARM_JOINTS.index(j) for j in UNROLLED]] = 0.0  # solved for, not applied
-        return angles
-
-    @staticmethod
-    def _refine(chain: np.ndarray, choice: np.ndarray) -> np.ndarray:
-        """``(P, n)``: each joint's roll between grid points (in steps, within half a step), from a
-        parabola through the chain's cost at its grid roll and the two beside it, its neighbours'
-        rolls held: a live estimate and a whole clip's then differ by less than a grid step."""
-        p, n = choice.shape
-        steps = chain.shape[-1]
-        rows, joints = np.arange(p)[:, None, None], np.arange(n)[None, :, None]
-        parent = np.concatenate([np.zeros((p, 1), dtype=int), choice[:, :-1]], axis=1)[..., None]
-        child = np.concatenate([choice[:, 1:], choice[:, -1:]], axis=1)[..., None]
-        b = (choice[..., None] + np.array([-1, 0, 1])) % steps  # (p, n, 3): the grid roll and beside it
-        values = chain[rows, joints, parent, b] + np.where(
-            joints < n - 1, chain[rows, np.minimum(joints + 1, n - 1), b, child], 0.0)
-        curve = values[..., 0] - 2.0 * values[..., 1] + values[..., 2]
-        offset = 0.5 * (values[..., 0] - values[..., 2]) / np.where(curve > 1e-12, curve, np.inf)
-        return np.clip(offset, -0.5, 0.5)
+        return kernels.solve_rolls(self.coefficients, self.basis, self.constant, self.angles,
+                                   kernels.rows(second), kernels.rows(first), kernels.rows(count),
+                                   len(CHAINS[0]), ROLL_SURE_FRAMES, low, high, ROLL_MIN_FRAMES,
+                                   self._unrolled)
 
 
 _MODELS: dict[bytes, RollModel] = {}
@@ -242,10 +200,9 @@ def apply_rolls(rotations: np.ndarray, joints: list[int], angles: np.ndarray, un
     (each joint's local rotation turned by its parent's inverse roll on the left and its own on
     the right; positions do not move). ``undo`` turns conformed rotations back."""
     lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
-    out = kernels.roll_rows(np.require(rotations, np.float64, "CW").reshape(-1, n_joints, 4),
+    out = kernels.roll_rows(kernels.rows(rotations).reshape(-1, n_joints, 4),
                             np.asarray(joints, dtype=np.int64),
-                            np.require(np.broadcast_to(angles, lead + (len(joints),)), np.float64,
-                                       "CW").reshape(-1, len(joints)),
+                            kernels.rows(np.broadcast_to(angles, lead + (len(joints),))).reshape(-1, len(joints)),
                             len(CHAINS[0]), undo)
     return out.reshape(rotations.shape)
 
@@ -329,8 +286,8 @@ class StreamRolls:
         if not live.any():
             return measured
         upper, lower = _arm_bones(self.skeleton)
-        kernels.add_arm_moments(np.require(rotations, np.float64, "CW"),
-                                np.require(positions, np.float64, "CW"), self._joints, upper, lower,
+        kernels.add_arm_moments(kernels.rows(rotations),
+                                kernels.rows(positions), self._joints, upper, lower,
                                 _HANG_COS, live, self._second, self._first, self._count)
         # every frame while the first few hanging-arm frames come in (until the rig is measured),
         # then every solve_seconds, every second after
@@ -380,6 +337,6 @@ class StreamGround:
     def update(self, ankles: np.ndarray) -> np.ndarray:
         """Follow one frame's ankle world positions ``(P, 2, 3)`` (the stream's own, not moved);
         returns the offsets ``(P,)``."""
-        kernels.follow_ground(np.require(ankles, np.float64, "CW"), self._last, self.offset, self._fps,
+        kernels.follow_ground(kernels.rows(ankles), self._last, self.offset, self._fps,
                               float(self.speed), self.ankle_height, self._down, self._up)
         return self.offset

@@ -89,7 +89,7 @@ def _check_canonical(sk: Skeleton) -> None:
 def facing_yaw(global_positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     """Heading of the body (radians about +Y, 0 = facing +Z) from hips and shoulders, per frame."""
     lead = global_positions.shape[:-2]
-    rows = np.require(global_positions, np.float64, "CW").reshape((-1,) + global_positions.shape[-2:])
+    rows = kernels.rows(global_positions).reshape((-1,) + global_positions.shape[-2:])
     return kernels.facing_yaw(rows, _index(skeleton, _ACROSS)).reshape(lead)
 
 
@@ -144,7 +144,7 @@ def _encode_frames(
     lead, n_joints = yaw.shape, rotations.shape[-2]
 
     def rows(a: np.ndarray, *shape: int) -> np.ndarray:
-        return np.require(a, np.float64, "CW").reshape((-1, *shape))
+        return kernels.rows(a).reshape((-1, *shape))
 
     out = kernels.encode_rows(
         lay.index, _feet(sk), _contact_heights(sk), sk.pelvis, rows(rotations, n_joints, 4),
@@ -173,9 +173,9 @@ def _pose(
     :class:`StreamDecoder`. Joints above the pelvis (the canonical static root) stay identity."""
     lead = f.shape[:-1]
     rotations, root_pos = kernels.pose_rows(
-        lay.index, sk.pelvis, sk.n_joints, np.require(f, np.float64, "CW").reshape(-1, f.shape[-1]),
-        np.require(yaw, np.float64, "CW").reshape(-1),
-        np.require(ground, np.float64, "CW").reshape(-1, 3))
+        lay.index, sk.pelvis, sk.n_joints, kernels.rows(f).reshape(-1, f.shape[-1]),
+        kernels.rows(yaw).reshape(-1),
+        kernels.rows(ground).reshape(-1, 3))
     return rotations.reshape(lead + (sk.n_joints, 4)), root_pos.reshape(lead + (3,))
 
 
@@ -197,8 +197,8 @@ def decode(
     lay = feature_layout(sk)
     f = np.asarray(features, dtype=np.float64)
     _check_decodable(f, lay, "T")
-    start = np.zeros(3) if start_ground is None else np.require(start_ground, np.float64, "CW")
-    yaw, ground = kernels.trajectory(np.require(f, np.float64, "CW"), start, float(start_yaw), float(fps))
+    start = np.zeros(3) if start_ground is None else kernels.rows(start_ground)
+    yaw, ground = kernels.trajectory(kernels.rows(f), start, float(start_yaw), float(fps))
     rotations, root_pos = _pose(sk, lay, f, yaw, ground)
     return Motion.from_rotations(sk, rotations, root_pos, fps)
 
@@ -229,7 +229,7 @@ class StreamEncoder:
         sk, lay = self.skeleton, self._layout
         return kernels.encode_stream(
             *kinematic_arrays(sk), sk.pelvis, _index(sk, _ACROSS), lay.index, _feet(sk), _contact_heights(sk),
-            np.require(rotations, np.float64, "CW"), np.require(root_positions, np.float64, "CW"),
+            kernels.rows(rotations), kernels.rows(root_positions),
             self._last, self._yaw, self._fresh, float(self.fps), CONTACT_SPEED, lay.size)
 
     @property
@@ -272,8 +272,8 @@ class StreamDecoder:
     def pull(self, ground: np.ndarray, yaw: np.ndarray, gain: float) -> None:
         """Move every performer's ground point and heading the fraction ``gain`` of the way towards
         ``ground`` and ``yaw`` (bounds the drift of an integrated trajectory from a live one)."""
-        kernels.pull_stream(self._ground, self._yaw, np.require(ground, np.float64, "CW"),
-                            np.require(yaw, np.float64, "CW"), self._fresh, float(gain))
+        kernels.pull_stream(self._ground, self._yaw, kernels.rows(ground),
+                            kernels.rows(yaw), self._fresh, float(gain))
 
     def move(self, offset: np.ndarray) -> None:
         """Move every performer's ground point by ``offset`` ``(P, 3)`` (its horizontal part): the
@@ -291,5 +291,5 @@ class StreamDecoder:
                 f"features for {f.shape[0]} performers; this decoder has {len(self._yaw)}"
             )
         sk = self.skeleton
-        return kernels.decode_stream(lay.index, sk.pelvis, sk.n_joints, np.require(f, np.float64, "CW"), self._yaw,
+        return kernels.decode_stream(lay.index, sk.pelvis, sk.n_joints, kernels.rows(f), self._yaw,
                                      self._ground, self._fresh, float(self.fps))

@@ -111,14 +111,14 @@ class FootLock:
         whose own low, slow ankles are taken as planted (:class:`OwnContact`). The arithmetic is
         :func:`motion_style_ros.core.kernels.lock_feet`."""
         sk = self.skeleton
-        rotations = np.require(rotations, np.float64, "CW")
-        roots = np.require(root_positions, np.float64, "CW")
+        rotations = kernels.rows(rotations)
+        roots = kernels.rows(root_positions)
         if input_ankles is None:
             _, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, roots), joints=[])
             input_ankles = self._own(g_pos[:, self._ankle])
         return kernels.lock_feet(
             *kinematic_arrays(sk), sk.pelvis, self._hip, self._knee, self._ankle, self._toes,
-            self._height, rotations, roots, np.require(input_ankles, np.float64, "CW"),
+            self._height, rotations, roots, kernels.rows(input_ankles),
             self._last, self._last_out, self._last_root, self._back, self._target, self._landed,
             self._offset, self._heading, self._turn, self._glide, self._weight, self._locked, self._axis,
             self.fps, float(self.speed), float(self.max_stretch), self._fade, bool(self.clearance),

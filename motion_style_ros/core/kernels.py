@@ -9,7 +9,7 @@ hundreds of such calls. Compiled, a row costs its arithmetic. The same kernels s
 classes that own the state (``StreamEncoder``, ``FootLock``, ...) keep it in arrays that the
 kernels update in place.
 
-Callers pass float64 C-contiguous writeable arrays (``np.require(x, np.float64, "CW")``), int64
+Callers pass float64 C-contiguous writeable arrays (:func:`rows`), int64
 index arrays and Python scalars, so that each kernel has one signature. Kernels compile on first
 use and are cached on disk (numba's ``cache=True``: beside this file, or in ~/.cache/numba where
 the package's folder is read-only): :func:`motion_style_ros.runtime.warmup.warm_kernels` pays that
@@ -25,6 +25,16 @@ import numpy as np
 from numba import njit
 
 _EPS = 1e-12  # rotations._EPS: the smallest norm a vector is divided by
+
+
+def rows(x, dtype=np.float64) -> np.ndarray:
+    """``x`` as a C-contiguous writeable array of ``dtype``, the kernels' one signature: ``x``
+    itself when it already is one. ``np.require`` does the same at several microseconds a call,
+    and a streamed model frame makes a dozen of them."""
+    if (type(x) is np.ndarray and x.dtype == dtype and x.flags.c_contiguous
+            and x.flags.writeable):
+        return x
+    return np.require(x, dtype, "CW")
 
 
 @njit(cache=True)
@@ -706,6 +716,102 @@ def ease_rolls(live, due, frames, settle, restarted, target, angles, gain, resta
             for i in range(angles.shape[1]):
                 angles[r, i] += g * turn[i]
     return measured
+
+
+@njit(cache=True)
+def solve_rolls(coefficients, basis, constant, grid, second, first, count, per_chain, sure, low, high,
+                min_frames, unrolled):
+    """:meth:`~motion_style_ros.core.conform.RollModel.solve`: the rolls ``(P, K)`` of each arm
+    chain (``per_chain`` joints, chains one after the other) from the moments ``second``
+    ``(P, K, 9, 9)``, ``first`` ``(P, K, 9)`` and counts ``(P, K)``. Each joint's cost at the
+    ``grid`` (A,) roll pairs is ``basis @ C @ basis.T + count * constant`` with ``C`` (5, 5)
+    the ``coefficients`` (K, 25, 90) times the moments; a dynamic programme chooses a chain's grid
+    rolls (the chain's first parent keeps its frame), a parabola through each joint's cost refines
+    it within half a grid step, and the chain is scaled by how clearly it beats no rolls
+    (``low``, ``high``; below ``sure`` frames all or nothing, below ``min_frames`` none). The
+    ``unrolled`` joints (K,) are solved with their chain and then left at 0."""
+    p_count, k_count = count.shape
+    steps = grid.shape[0]
+    step = grid[1]
+    out = np.zeros((p_count, k_count))
+    moments = np.empty(90)
+    c = np.empty(25)
+    half = np.empty((steps, 5))
+    across = np.ascontiguousarray(basis.T)
+    costs = np.empty((per_chain, steps, steps))
+    total = np.empty(steps)
+    nxt = np.empty(steps)
+    back = np.zeros((per_chain, steps), dtype=np.int64)
+    choice = np.zeros(per_chain, dtype=np.int64)
+    near = np.empty(3)
+    for r in range(p_count):
+        for chain in range(k_count // per_chain):
+            for k in range(per_chain):
+                j = chain * per_chain + k
+                for u in range(9):
+                    for v in range(9):
+                        moments[9 * u + v] = second[r, j, u, v]
+                    moments[81 + u] = first[r, j, u]
+                for i in range(25):
+                    acc = 0.0
+                    for m in range(90):
+                        acc += coefficients[j, i, m] * moments[m]
+                    c[i] = acc
+                for a in range(steps):
+                    for v in range(5):
+                        acc = 0.0
+                        for u in range(5):
+                            acc += basis[a, u] * c[5 * u + v]
+                        half[a, v] = acc
+                shift = count[r, j] * constant[j]
+                for a in range(steps):
+                    row = costs[k, a]
+                    row[:] = shift
+                    for v in range(5):
+                        h = half[a, v]
+                        for b in range(steps):
+                            row[b] += h * across[v, b]
+            for b in range(steps):
+                total[b] = costs[0, 0, b]
+            for k in range(1, per_chain):
+                nxt[:] = np.inf
+                for a in range(steps):  # a running minimum over parents, the first on ties
+                    t = total[a]
+                    for b in range(steps):
+                        value = t + costs[k, a, b]
+                        if value < nxt[b]:
+                            nxt[b] = value
+                            back[k, b] = a
+                total[:] = nxt
+            last = 0
+            for b in range(1, steps):
+                if total[b] < total[last]:
+                    last = b
+            choice[per_chain - 1] = last
+            for k in range(per_chain - 1, 0, -1):
+                choice[k - 1] = back[k, choice[k]]
+            unrolled_cost = 0.0
+            for k in range(per_chain):
+                unrolled_cost += costs[k, 0, 0]
+            frames = count[r, chain * per_chain]
+            gain = (unrolled_cost - total[last]) / max(frames, 1.0)
+            lo = low if frames >= sure else high - 1e-6
+            weight = min(max((gain - lo) / (high - lo), 0.0), 1.0) if frames >= min_frames else 0.0
+            for k in range(per_chain):
+                parent = choice[k - 1] if k > 0 else 0
+                for d in range(3):
+                    b = (choice[k] + d - 1) % steps
+                    near[d] = costs[k, parent, b]
+                    if k < per_chain - 1:
+                        near[d] += costs[k + 1, b, choice[k + 1]]
+                curve = near[0] - 2.0 * near[1] + near[2]
+                offset = 0.5 * (near[0] - near[2]) / curve if curve > 1e-12 else 0.0
+                offset = min(max(offset, -0.5), 0.5)
+                j = chain * per_chain + k
+                if not unrolled[j]:
+                    x = grid[choice[k]] + offset * step
+                    out[r, j] = weight * math.atan2(math.sin(x), math.cos(x))
+    return out
 
 
 @njit(cache=True)

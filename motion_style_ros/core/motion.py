@@ -99,8 +99,8 @@ def forward_kinematics(
     """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones; with
     ``joints``, the global rotations of those joints only."""
     lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
-    q = np.require(rotations, np.float64, "CW").reshape(-1, n_joints, 4)
-    t = np.require(np.broadcast_to(positions, lead + (n_joints, 3)), np.float64, "CW")
+    q = kernels.rows(rotations).reshape(-1, n_joints, 4)
+    t = kernels.rows(np.broadcast_to(positions, lead + (n_joints, 3)))
     g_rot, g_pos = kernels.forward_kinematics(kinematic_arrays(skeleton)[0], q, t.reshape(-1, n_joints, 3))
     g_rot, g_pos = g_rot.reshape(lead + (n_joints, 4)), g_pos.reshape(lead + (n_joints, 3))
     return (g_rot if joints is None else g_rot[..., joints, :]), g_pos
@@ -110,7 +110,7 @@ def forward_kinematics(
 def kinematic_arrays(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
     """The skeleton's parents (int64) and rest offsets (float64) as the compiled kernels take them,
     made once per skeleton."""
-    return np.array(skeleton.parents, dtype=np.int64), np.require(skeleton.offsets, np.float64, "CW")
+    return np.array(skeleton.parents, dtype=np.int64), kernels.rows(skeleton.offsets)
 
 
 def local_from_global(skeleton: Skeleton, global_rotations: np.ndarray) -> np.ndarray:

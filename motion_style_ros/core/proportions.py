@@ -41,9 +41,9 @@ def _stance_sums(root_velocity: np.ndarray, leg_velocity: np.ndarray, scale: np.
     """The least-squares sums ``(-v . l, l . l)`` of each frame's stance foot: ``root_velocity``
     ``(N, 2)`` and ``leg_velocity`` ``(N, K, 2)`` of the contact points (ankles and toes),
     horizontal m/s (:func:`motion_style_ros.core.kernels.stance_rows`)."""
-    return kernels.stance_rows(np.require(root_velocity, np.float64, "CW"),
-                               np.require(leg_velocity, np.float64, "CW"),
-                               np.require(scale, np.float64, "CW"), MIN_LEG_SPEED, STANCE_RESIDUAL)
+    return kernels.stance_rows(kernels.rows(root_velocity),
+                               kernels.rows(leg_velocity),
+                               kernels.rows(scale), MIN_LEG_SPEED, STANCE_RESIDUAL)
 
 
 def _estimate(cross: np.ndarray, square: np.ndarray, reference: float) -> np.ndarray:
@@ -140,7 +140,7 @@ class StreamScale:
         before (as for the arm rolls)."""
         low, high = SCALE_RANGE
         return kernels.observe_scale(
-            np.require(relative_ankles, np.float64, "CW"), self._relative, self._step, self.frozen,
+            kernels.rows(relative_ankles), self._relative, self._step, self.frozen,
             self._measured, self._cross, self._square, self.target, self.scale, self.fps, self.reference,
             PRIOR_WEIGHT, low, high, MIN_LEG_SPEED, STANCE_RESIDUAL, RESTART_EVIDENCE, RESTART_OFF, self._gain)
 

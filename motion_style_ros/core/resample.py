@@ -68,7 +68,7 @@ class Hermite:
 
 
 def _rows(q: np.ndarray) -> np.ndarray:
-    return np.require(q, np.float64, "CW").reshape(-1, 4)
+    return kernels.rows(q).reshape(-1, 4)
 
 
 def hermite(frames: list[tuple[float, np.ndarray, np.ndarray]], t: float) -> tuple[np.ndarray, np.ndarray]:

@@ -244,7 +244,7 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarray:
     lead = np.broadcast_shapes(a.shape[:-1], b.shape[:-1], t.shape)
 
     def rows(x: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-        return np.require(np.broadcast_to(x, shape), np.float64, "CW").reshape((-1,) + shape[len(lead):])
+        return kernels.rows(np.broadcast_to(x, shape)).reshape((-1,) + shape[len(lead):])
 
     return kernels.slerp_rows(rows(a, lead + (4,)), rows(b, lead + (4,)), rows(t, lead)).reshape(lead + (4,))
 

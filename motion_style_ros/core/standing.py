@@ -49,4 +49,4 @@ class Standing:
         (:func:`motion_style_ros.core.kernels.stand`)."""
         return kernels.stand(self._contact.start, self._sides, _ROOT_MOTION, self._frame, float(self.hold_seconds),
                              self._ease, self._still, self._weight,
-                             np.require(output, np.float64, "CW"), np.require(features, np.float32, "C"))
+                             kernels.rows(output), kernels.rows(features, np.float32))

@@ -66,7 +66,7 @@ def to_ros(v: np.ndarray) -> np.ndarray:
 
 def _rows(x: np.ndarray, width: int) -> np.ndarray:
     """``x (..., width)`` as the kernels' float64 C rows ``(N, width)``."""
-    return np.require(np.asarray(x, dtype=np.float64).reshape(-1, width), np.float64, "CW")
+    return kernels.rows(np.asarray(x, dtype=np.float64).reshape(-1, width))
 
 
 def rotation_names(bones: Sequence[str]) -> list[str]:

@@ -426,8 +426,8 @@ class StreamSession:
                 f"{np.shape(root_positions)}; expected ({n}, {j}, 4) local quaternions (w, x, y, z) "
                 f"of the canonical skeleton's {j} joints and ({n}, 3) pelvis positions"
             )
-        p = np.require(p, np.float64, "CW")
-        q, problem, k, joint, norm = kernels.check_frame(np.require(q, np.float64, "CW"), p,
+        p = kernels.rows(p)
+        q, problem, k, joint, norm = kernels.check_frame(kernels.rows(q), p,
                                                          QUATERNION_TOLERANCE)
         if problem == 1:
             raise MotionStyleError(f"performer {k}: NaN or infinite values in the frame")
