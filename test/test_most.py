@@ -196,15 +196,44 @@ def test_bad_references_are_rejected_with_a_reason(exported, datasets, tmp_path)
     assert session.set_reference(walk) in session.styles
 
 
-def test_a_negative_content_weight_is_one_line_before_any_data_is_read(tmp_path):
+@pytest.mark.parametrize("flag, value, reason", [
+    ("--content-weight", "-0.5", "--content-weight must be 0 or more, got -0.5"),
+    ("--content-net-weight", "-1", "--content-net-weight must be 0 or more, got -1"),
+    ("--dec-blocks", "0", "--dec-blocks must be 1 to 8 (the paper's code: 3), got 0"),
+])
+def test_a_bad_training_flag_is_one_line_before_any_data_is_read(tmp_path, flag, value, reason):
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "train", "most", "--content-weight",
-                          "-0.5", "--out", str(tmp_path)], check=False, capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "train", "most", flag, value,
+                          "--out", str(tmp_path)], check=False, capture_output=True, text=True)
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
-    assert "--content-weight must be 0 or more, got -0.5" in out.stderr
+    assert reason in out.stderr
     assert not any(tmp_path.iterdir())
+
+
+def test_the_content_classifier_term_trains_its_network_first_and_moves_the_transfer(data, tmp_path):
+    cfg = most.tiny_config(w_content_net=1.0, content_widths=(16,), content_iterations=20, content_batch=8)
+    trainer = most.Trainer(cfg, data, tmp_path, progress=False)
+    assert (tmp_path / "most_0" / "content_net.pt").is_file()
+    assert trainer.summary()["content_network"]["iterations"] == 20
+    terms = trainer.step(0)
+    assert terms["content_net"] > 0.0 and np.isfinite(terms["content_net"])
+    # the term alone has a gradient on the generator: the network is frozen, the transfer is not
+    trainer.opt_g.zero_grad()
+    x, _, content = training_data.windows(data.splits["train"], cfg.window, 4, np.random.default_rng(1))
+    s1, _, _ = most.style_pairs(data.splits["train"], cfg.window, np.zeros(4, dtype=int), np.random.default_rng(2))
+    fake = trainer.most(x, s1)
+    torch.nn.functional.cross_entropy(trainer.content(trainer.losses.views(fake)["content"])[0], content).backward()
+    assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in trainer.most.generator.parameters())
+    assert all(p.grad is None for p in trainer.content.parameters())
+    # a second trainer with the same settings loads the saved network instead of training it again
+    again = most.Trainer(cfg, data, tmp_path, progress=False)
+    a, b = trainer.content.state_dict(), again.content.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    # off (the shipped recipe): no network, no term
+    off = most.Trainer(most.tiny_config(), data, tmp_path / "off", progress=False)
+    assert off.content is None and off.summary()["content_network"] is None
 
 
 def test_a_style_enrolled_from_clips_is_a_target_with_their_features(exported, datasets, tmp_path):

@@ -90,6 +90,12 @@ def add_parser(subparsers):
     most.add_argument("--content-weight", type=float, default=None, metavar="W",
                       help="weight of the content term (the transfer's frame content features against "
                            "the input's; not in the paper; default: the trainer's Config)")
+    most.add_argument("--content-net-weight", type=float, default=None, metavar="W",
+                      help="weight of a content classifier's cross-entropy on the transfer against the "
+                           "input's content label (a content network trained on the train takes first; "
+                           "not in the paper; default: the trainer's Config, off)")
+    most.add_argument("--dec-blocks", type=int, default=None, metavar="N",
+                      help="generator blocks (the paper's code: 3; default: the trainer's Config)")
     _budget_flags(most, minutes=100.0)
     _output_flags(most, "most*.onnx, the style means and the card")
     most.set_defaults(func=run_most)
@@ -336,14 +342,21 @@ def run_saae(args) -> int:
 def run_most(args) -> int:
     from motion_style_ros.errors import MotionStyleError
 
-    def content_weight() -> None:
-        if args.content_weight is not None and not args.content_weight >= 0:
-            raise MotionStyleError(f"--content-weight must be 0 or more, got {args.content_weight}")
+    flags = {"content_weight": "w_content", "content_net_weight": "w_content_net", "dec_blocks": "dec_blocks"}
+
+    def checked() -> None:
+        for flag in ("content_weight", "content_net_weight"):
+            value = getattr(args, flag)
+            if value is not None and not value >= 0:
+                raise MotionStyleError(f"--{flag.replace('_', '-')} must be 0 or more, got {value:g}")
+        if args.dec_blocks is not None and not 1 <= args.dec_blocks <= 8:
+            raise MotionStyleError(f"--dec-blocks must be 1 to 8 (the paper's code: 3), got {args.dec_blocks}")
 
     most, out, fields, recipe = _stylizer_run(args, "most", "the MoST trainer does not restyle unlabelled clips",
-                                              content_weight)
-    changes = {"w_content": args.content_weight} if args.content_weight is not None else {}
-    after = f" --content-weight {args.content_weight:g}" if args.content_weight is not None else ""
+                                              checked)
+    given = {flag: getattr(args, flag) for flag in flags if getattr(args, flag) is not None}
+    changes = {flags[flag]: value for flag, value in given.items()}
+    after = "".join(f" --{flag.replace('_', '-')} {value:g}" for flag, value in given.items())
     card = most.train(most.Config(seed=args.seed, **fields, **changes), out,
                       **_run_settings(args, "most", recipe, after=after))
     return _report(card, out, lambda val: (

@@ -44,7 +44,6 @@ from motion_style_ros.training.data import (
     FPS,
     Clips,
     Data,
-    DataConfig,
     other_styles,
     style_windows,
     windows,
@@ -55,6 +54,8 @@ from motion_style_ros.training.loop import (
     fit_for_export,
     update_average,
 )
+from motion_style_ros.training import hardware
+from motion_style_ros.training.content import ContentConfig, content_network
 from motion_style_ros.training.losses import Losses, pose, val_scores
 from motion_style_ros.training.most.export import write_model
 
@@ -62,8 +63,9 @@ NAME = "most"
 
 
 @dataclass(frozen=True)
-class Config(DataConfig):
-    """Everything that shapes a MoST run, the seed and data fields of :class:`DataConfig` first; a
+class Config(ContentConfig):
+    """Everything that shapes a MoST run, the seed and data fields of :class:`DataConfig` and the
+    content network's (:class:`ContentConfig`, trained only when ``w_content_net`` is on) first; a
     checkpoint resumes only under the same config."""
 
     # networks (models.most.MostConfig); the paper: dim 48, 4 heads, 2 + 1 encoder blocks, 3
@@ -96,6 +98,10 @@ class Config(DataConfig):
     w_smooth_acc: float = 0.5  # physics: pose and global acceleration
     w_foot: float = 1.0  # physics: foot contact
     w_content: float = 1.0  # the transfer's frame content features Y against the input's (not in the paper)
+    # a content classifier's cross-entropy on the transfer against the input's content label (a
+    # content network trained first on the train takes, training.content; not in the paper; off in
+    # the shipped model)
+    w_content_net: float = 0.0
     # reconstruction terms (training.losses.Losses)
     w_pos: float = 0.5
     w_vel: float = 1.0
@@ -200,6 +206,11 @@ class Trainer(ResumableTrainer):
                  progress: bool = True, device: torch.device | None = None) -> None:
         super().__init__(cfg, data, checkpoints, progress, device)
         mean, std = self.normalised_losses()
+        self.content, self.content_info = None, None
+        if cfg.w_content_net:
+            with hardware.rank_zero_first():  # the others read the network rank 0 trained and saved
+                self.content, self.content_info = content_network(
+                    cfg, data, self.losses, self.dir / "content_net.pt", self.progress, self.device)
         net = cfg.networks(data.styles)
         torch.manual_seed(cfg.seed)
         self.most = MoST(net, mean, std).to(self.device)
@@ -226,7 +237,7 @@ class Trainer(ResumableTrainer):
         return self.most
 
     def summary(self) -> dict:
-        return {**super().summary(), "content_network": None}
+        return {**super().summary(), "content_network": self.content_info}
 
     def _rec(self, out: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """The shared reconstruction terms between two ``[root | rot6d]`` windows, summed."""
@@ -248,10 +259,10 @@ class Trainer(ResumableTrainer):
         """One discriminator and one generator update; returns the loss terms."""
         cfg, n_styles = self.cfg, len(self.data.styles)
         rng = np.random.default_rng([cfg.seed, 0, iteration])
-        x, style, _ = windows(self.data.splits["train"], cfg.window, cfg.batch, rng)
+        x, style, content = windows(self.data.splits["train"], cfg.window, cfg.batch, rng)
         target = other_styles(style, n_styles, rng)
         s1, s2, _ = style_pairs(self.data.splits["train"], cfg.window, target.numpy(), rng)
-        x, target, s1, s2 = self.shard(x, target, s1, s2)
+        x, content, target, s1, s2 = self.shard(x, content, target, s1, s2)
 
         # discriminator: real style windows of their style vs transfers to it
         self.dis.requires_grad_(True)
@@ -282,16 +293,20 @@ class Trainer(ResumableTrainer):
         vel, acc, foot = self.physics(out["fake"], x)
         foot = 0.5 * (foot + self.losses.foot(self.losses.views(out["cyc_content"]), x))
         kept = content_change(out["content_fake"], out["content_in"])
+        classified = torch.zeros((), device=self.device)
+        if self.content is not None:
+            classified = F.cross_entropy(self.content(self.losses.views(out["fake"])["content"])[0], content)
         total = (cfg.w_adv * adv + cfg.w_rec * rec + cfg.w_cyc_content * cyc_c + cfg.w_cyc_style * cyc_s
                  + cfg.w_dis * dis + cfg.w_smooth_vel * vel + cfg.w_smooth_acc * acc + cfg.w_foot * foot
-                 + cfg.w_content * kept)
+                 + cfg.w_content * kept + cfg.w_content_net * classified)
         self.opt_g.zero_grad()
         total.backward()
         self.opt_g.step()
         update_average(self.most_ema, self.most, cfg.ema)
         return {"adv": adv.item(), "critic": critic.item(), "r1": r1.item(), "rec": rec.item(),
                 "cyc_content": cyc_c.item(), "cyc_style": cyc_s.item(), "dis": dis.item(),
-                "vel": vel.item(), "acc": acc.item(), "foot": foot.item(), "content": kept.item()}
+                "vel": vel.item(), "acc": acc.item(), "foot": foot.item(), "content": kept.item(),
+                "content_net": classified.item()}
 
     @torch.no_grad()
     def validate(self, model: MoST | None = None) -> dict[str, float]:
@@ -353,7 +368,9 @@ def paper_differences(cfg: Config) -> list[str]:
          "physics terms on FK pose velocity and acceleration, the root block's change and the "
          "feet's speed at the content window's contacts (transfer and content cycle)"
          + (f"; a content term (weight {cfg.w_content}): the transfer's frame content features "
-            "against the input's, relative to their spread" if cfg.w_content else "")),
+            "against the input's, relative to their spread" if cfg.w_content else "")
+         + (f"; a content classifier's cross-entropy on the transfer (weight {cfg.w_content_net}; "
+            "a content network trained on the train takes first)" if cfg.w_content_net else "")),
         (f"Adam betas {cfg.betas}, weight decay {cfg.weight_decay}, learning rate {cfg.lr} "
          f"(discriminator {cfg.lr_dis}), batch {cfg.batch}, lazy R1 every {cfg.r1_every}"),
     ]

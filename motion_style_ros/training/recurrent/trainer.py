@@ -20,34 +20,32 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
-from tqdm import tqdm
 
-from motion_style_ros.core.features import feature_layout
-from motion_style_ros.models.style_erd import ContentNet, ErdConfig, FTAttDiscriminator, StyleERD
+from motion_style_ros.models.style_erd import ErdConfig, FTAttDiscriminator, StyleERD
 from motion_style_ros.training import hardware
 from motion_style_ros.training.data import (
     Data,
-    DataConfig,
     other_styles,
     windows,
 )
 from motion_style_ros.training.loop import (
     CHECKPOINTS,
-    PROGRESS_INTERVAL,
     ResumableTrainer,
     fit_for_export,
     update_average,
 )
-from motion_style_ros.training.losses import Losses, val_scores
+from motion_style_ros.training.content import FRAME, ContentConfig, content_network, frames
+from motion_style_ros.training.losses import val_scores
 from motion_style_ros.training.recurrent.export import write_model
 
 NAME = "style_erd"
 
 
 @dataclass(frozen=True)
-class Config(DataConfig):
+class Config(ContentConfig):
     """Everything that shapes a Style-ERD run, the seed and data fields of :class:`DataConfig`
-    first; a checkpoint resumes only under the same config."""
+    and the content network's (:class:`ContentConfig`) first; a checkpoint resumes only under the
+    same config."""
 
     # generator (see models.style_erd.ErdConfig). Shallower and wider than the paper's 6 + 4 LSTM
     # layers of width 32: on 2 CPU cores the deep stacks had barely started to reconstruct after
@@ -87,10 +85,6 @@ class Config(DataConfig):
     # critics
     dis_widths: tuple[int, ...] = (128, 96, 64)
     dis_features: int = 16
-    content_widths: tuple[int, ...] = (128, 96, 64)
-    content_iterations: int = 1500
-    content_batch: int = 32
-    content_lr: float = 1e-3
 
     @property
     def window(self) -> int:
@@ -110,60 +104,8 @@ def tiny_config(**changes) -> Config:
                    **changes)
 
 
-_FRAME = feature_layout().slices["rot6d"].stop  # encode()'s [root | rot6d] blocks lead its layout
-
-
-def _frames(x: torch.Tensor) -> torch.Tensor:
-    """The ``[root | rot6d]`` part of encode() features: what the generator outputs."""
-    return x[..., :_FRAME]
-
-
 def _onehot(index: torch.Tensor, n: int, repeat: int = 1) -> torch.Tensor:
     return F.one_hot(index, n).float().repeat_interleave(repeat, dim=0)
-
-
-def _content_settings(cfg: Config) -> dict:
-    names = ("seed", "datasets", "data", "crops", "crop_frames", "std_floor", "content_widths",
-             "content_iterations", "content_batch", "content_lr")
-    return {k: getattr(cfg, k) for k in names}
-
-
-def content_network(cfg: Config, data: Data, losses: Losses, path: Path, progress: bool = True,
-                    device: torch.device | None = None) -> tuple[ContentNet, dict]:
-    """The frozen content network of the perceptual loss: loaded from ``path``, or trained on the
-    train takes' content labels and saved there. Returns it and its val window accuracy."""
-    channels = losses.rot_cols.stop - losses.rot_cols.start + losses.pv_cols.stop - losses.pv_cols.start
-    torch.manual_seed(cfg.seed)
-    device = device or torch.device("cpu")
-    net = ContentNet(channels, len(data.contents), cfg.content_widths).to(device)
-    if path.exists():
-        saved = torch.load(path, map_location="cpu", weights_only=False)
-        if {"data": "", **saved["settings"]} == _content_settings(cfg) and saved["contents"] == list(data.contents):
-            net.load_state_dict(saved["model"])
-            return net.requires_grad_(False).eval(), saved["info"]
-    optimizer = torch.optim.Adam(net.parameters(), lr=cfg.content_lr)
-    # one content (a folder labelled by style only) leaves nothing to learn: its random features stay
-    iterations = cfg.content_iterations if len(data.contents) > 1 else 0
-    bar = tqdm(range(iterations), desc="content network", disable=not progress, mininterval=PROGRESS_INTERVAL)
-    for it in bar:
-        x, _, content = (t.to(device) for t in windows(data.splits["train"], cfg.window, cfg.content_batch,
-                                                        np.random.default_rng([cfg.seed, 1, it])))
-        loss = F.cross_entropy(net(losses.views(_frames(x))["content"])[0], content)
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-        bar.set_postfix(loss=f"{loss.item():.3f}", refresh=False)
-    net.requires_grad_(False).eval()
-    x, _, content = (t.to(device) for t in windows(data.splits["val"], cfg.window, 256,
-                                                    np.random.default_rng([cfg.seed, 2])))
-    with torch.no_grad():
-        logits, _ = net(losses.views(_frames(x))["content"])
-    info = {"val_window_accuracy": round(float((logits.argmax(-1) == content).float().mean()), 4),
-            "window_frames": cfg.window, "iterations": iterations}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"settings": _content_settings(cfg), "contents": list(data.contents),
-                "model": net.state_dict(), "info": info}, path)
-    return net, info
 
 
 class _Stylize(nn.Module):
@@ -195,7 +137,7 @@ class Trainer(ResumableTrainer):
             self.content, self.content_info = content_network(cfg, data, self.losses, self.dir / "content_net.pt",
                                                               self.progress, self.device)
         torch.manual_seed(cfg.seed)
-        self.model = StyleERD(cfg.erd(data.styles), mean, std, mean[:_FRAME], std[:_FRAME]).to(self.device)
+        self.model = StyleERD(cfg.erd(data.styles), mean, std, mean[:FRAME], std[:FRAME]).to(self.device)
         self.ema = copy.deepcopy(self.model).requires_grad_(False)
         self.dis = FTAttDiscriminator(self.losses.pv_cols.stop - self.losses.pv_cols.start,
                                       len(data.styles), len(data.contents), cfg.crop_frames,
@@ -229,7 +171,7 @@ class Trainer(ResumableTrainer):
         out = self.losses.views(self.stylize(torch.cat([x, source]), torch.cat([style, target])))
         rec = {k: v[:batch] for k, v in out.items()}
         fake = {k: v[batch:] for k, v in out.items()}
-        source_views = self.losses.views(_frames(source))
+        source_views = self.losses.views(frames(source))
         real = {k: v[:batch] for k, v in source_views.items()}
         with torch.no_grad():
             source_content, target_maps = self.content(source_views["content"])
@@ -274,7 +216,7 @@ class Trainer(ResumableTrainer):
         the content after transfer to another style."""
         model = model or self.ema
         x, style, content = self.val_windows
-        real = self.losses.views(_frames(x))
+        real = self.losses.views(frames(x))
         rec = self.losses.reconstruction(self.losses.views(model.stylize(x, style)), real)
         fake = self.losses.views(model.stylize(x, self.val_targets))
         logits, _ = self.content(fake["content"])
