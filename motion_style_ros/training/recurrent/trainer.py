@@ -47,14 +47,12 @@ class Config(ContentConfig):
     and the content network's (:class:`ContentConfig`) first; a checkpoint resumes only under the
     same config."""
 
-    # generator (see models.style_erd.ErdConfig). Shallower and wider than the paper's 6 + 4 LSTM
-    # layers of width 32: on 2 CPU cores the deep stacks had barely started to reconstruct after
-    # 300 iterations while this one was within a few centimetres (pos loss 0.08 vs 0.94).
-    encoder: tuple[int, ...] = (128,)
-    latent: int = 64
-    neutral_layers: int = 2
-    style_layers: int = 2
-    decoder: tuple[int, ...] = (128, 128)
+    # generator: models.style_erd.ErdConfig's sizes (shallower and wider than the paper's; why there)
+    encoder: tuple[int, ...] = ErdConfig.encoder
+    latent: int = ErdConfig.latent
+    neutral_layers: int = ErdConfig.neutral_layers
+    style_layers: int = ErdConfig.style_layers
+    decoder: tuple[int, ...] = ErdConfig.decoder
     # windows: the generator runs crops * crop_frames + 1 frames from its initial state (the first
     # frame only gives the next one its velocity); the discriminator sees crop_frames-frame crops
     batch: int = 32
