@@ -154,3 +154,40 @@ def test_training_reduces_reconstruction_and_resumes_identically(data, tmp_path)
 
     assert [e["rec"] for e in losses(whole)] == [e["rec"] for e in losses(resumed)]
     assert len(losses(resumed)) == 6
+
+
+def test_the_style_adversary_learns_the_input_style_and_the_generator_gets_its_reversed_gradient(data, tmp_path):
+    cfg = recurrent.tiny_config(w_style_adversary=1.0, warmup=0)
+    trainer = recurrent.Trainer(cfg, data, tmp_path / "a", progress=False)
+    assert "adversary" in trainer.PARTS and "adversary" not in recurrent.Trainer.PARTS
+    # the reversal: the adversary's loss falls along its own gradient and rises along the one the
+    # generator's neutral output receives
+    x, style, _ = training_data.windows(data.splits["train"], cfg.window, 8, np.random.default_rng(0))
+    _, neutral = trainer.model.stylize(x, style, with_neutral=True)
+    neutral = neutral.detach().requires_grad_(True)
+    loss = torch.nn.functional.cross_entropy(trainer.adversary(neutral), style)
+    loss.backward()
+    with torch.no_grad():
+        step = 1e-2 * neutral.grad / neutral.grad.norm()
+        assert torch.nn.functional.cross_entropy(trainer.adversary(neutral - step), style) > loss
+    before = [p.detach().clone() for p in trainer.adversary.parameters()]
+    trainer.run(iterations=4, log_every=1, val_every=1000)
+    assert all(not torch.equal(a, b) for a, b in zip(before, trainer.adversary.parameters()))
+    told = [e["style_told"] for e in map(json.loads, trainer.log.read_text().splitlines()) if "rec" in e]
+    assert len(told) == 4 and all(np.isfinite(told))
+    # it is checkpointed with its optimiser: a resumed run continues it
+    resumed = recurrent.Trainer(cfg, data, tmp_path / "a", progress=False)
+    assert resumed.resume()
+    a, b = trainer.adversary.state_dict(), resumed.adversary.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_a_negative_style_adversary_weight_is_one_line_before_any_data_is_read(tmp_path):
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "train", "recurrent", "--style-adversary",
+                          "-1", "--out", str(tmp_path)], check=False, capture_output=True, text=True)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert "--style-adversary must be 0 or more, got -1" in out.stderr
+    assert not any(tmp_path.iterdir())

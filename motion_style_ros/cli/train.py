@@ -41,6 +41,9 @@ def add_parser(subparsers):
     _budget_flags(recurrent, minutes=110.0)
     recurrent.add_argument("--foot-weight", type=float, default=0.0, metavar="W",
                            help="weight of the foot-contact loss (default: 0)")
+    recurrent.add_argument("--style-adversary", type=float, default=0.0, metavar="W",
+                           help="weight of a style adversary on the neutral stack's output (the generator "
+                                "learns to leave the input's style out of it; not in the paper; default: 0)")
     _output_flags(recurrent, "style_erd.onnx and its card")
     recurrent.set_defaults(func=run_recurrent)
     stgcn = targets.add_parser(
@@ -299,10 +302,19 @@ def _reconstruction(val: dict, what: str = "reconstruction") -> str:
 
 
 def run_recurrent(args) -> int:
-    recurrent, out, fields, recipe = _stylizer_run(args, "recurrent")
-    cfg = recurrent.Config(seed=args.seed, w_foot=args.foot_weight, **fields)
-    if args.foot_weight:
-        recipe += f" --foot-weight {args.foot_weight:g}"
+    from motion_style_ros.errors import MotionStyleError
+
+    def checked() -> None:
+        for flag in ("foot_weight", "style_adversary"):
+            if not getattr(args, flag) >= 0:
+                raise MotionStyleError(f"--{flag.replace('_', '-')} must be 0 or more, got {getattr(args, flag):g}")
+
+    recurrent, out, fields, recipe = _stylizer_run(args, "recurrent", check=checked)
+    cfg = recurrent.Config(seed=args.seed, w_foot=args.foot_weight, w_style_adversary=args.style_adversary,
+                           **fields)
+    for flag in ("foot_weight", "style_adversary"):
+        if getattr(args, flag):
+            recipe += f" --{flag.replace('_', '-')} {getattr(args, flag):g}"
     card = recurrent.train(cfg, out, **_run_settings(args, "recurrent", recipe))
     return _report(card, out, _reconstruction, "style_erd")
 

@@ -160,13 +160,17 @@ class StyleERD(nn.Module):
             new_states.append(s_out)
         return self._decode(neutral + residual, style, alpha), self._pack(new_states)
 
-    def stylize(self, features: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    def stylize(self, features: torch.Tensor, target: torch.Tensor, with_neutral: bool = False
+                ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
         """Training path: ``features (B, T, F)`` from the learned initial state to one-hot target
-        style indices ``target (B,)``; runs each branch only on the sequences that target it."""
+        style indices ``target (B,)``; runs each branch only on the sequences that target it.
+        ``with_neutral``: also the neutral stack's output ``(B, T, latent)`` (what a style
+        adversary reads)."""
         b = features.shape[0]
         z = self.encoder((features - self.in_mean) / self.in_std)
         init = self._unpack(self.initial_state(b))
         out, _ = self.stacks[0](z, init[0])
+        neutral = out
         columns = self.branch_columns.tolist()
         for k, lstm in enumerate(self.stacks[1:]):
             rows = (target == columns[k]).nonzero()[:, 0]
@@ -175,7 +179,8 @@ class StyleERD(nn.Module):
                 y, _ = lstm(z[rows], (h[:, rows].contiguous(), c[:, rows].contiguous()))
                 out = out.index_add(0, rows, y)
         style = nn.functional.one_hot(target, len(self.cfg.styles)).to(features.dtype)
-        return self._decode(out, style, torch.ones(b, 1))
+        output = self._decode(out, style, torch.ones(b, 1))
+        return (output, neutral) if with_neutral else output
 
     def _decode(self, latent: torch.Tensor, style: torch.Tensor, alpha: torch.Tensor) -> torch.Tensor:
         """Output frames of latent codes ``(B, T, latent)`` or ``(B, latent)`` (one step)."""
@@ -280,6 +285,37 @@ class FTAttDiscriminator(nn.Module):
         a = self.attention(torch.cat([style, content], dim=-1))
         w = self.feature_attention(a)[:, :, None] * self.temporal_attention(a)[:, None, :]
         return (m * w).sum(dim=(1, 2))
+
+
+class _Reverse(torch.autograd.Function):
+    """Identity forward; the gradient negated on the way back (Ganin and Lempitsky's reversal)."""
+
+    @staticmethod
+    def forward(ctx, x: torch.Tensor) -> torch.Tensor:
+        return x.view_as(x)
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor) -> torch.Tensor:
+        return -grad
+
+
+class StyleAdversary(nn.Module):
+    """A style classifier on the neutral stack's output, behind a gradient reversal: it learns to
+    tell the input's style from that output while the generator learns to leave none there, so
+    that what the style branches add is the only style. Without instance normalisation: a clip's
+    statistics over time are where its style shows."""
+
+    def __init__(self, latent: int, n_styles: int, width: int = 64) -> None:
+        super().__init__()
+        self.features = nn.Sequential(_conv(latent, width, 5), nn.LeakyReLU(0.2), _conv(width, width, 5),
+                                      nn.LeakyReLU(0.2))
+        self.head = nn.Linear(width, n_styles)
+
+    def forward(self, neutral: torch.Tensor) -> torch.Tensor:
+        """``neutral (B, T, latent)`` -> style logits ``(B, styles)``, the gradient to ``neutral``
+        reversed."""
+        h = self.features(_Reverse.apply(neutral).transpose(1, 2))
+        return self.head(h.mean(dim=-1))
 
 
 class ContentNet(nn.Module):

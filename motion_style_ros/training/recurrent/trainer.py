@@ -21,7 +21,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from motion_style_ros.models.style_erd import ErdConfig, FTAttDiscriminator, StyleERD
+from motion_style_ros.models.style_erd import ErdConfig, FTAttDiscriminator, StyleAdversary, StyleERD
 from motion_style_ros.training import hardware
 from motion_style_ros.training.data import (
     Data,
@@ -73,6 +73,10 @@ class Config(ContentConfig):
     # transferred output (squared velocity where the input's contact feature is 1); off in the
     # shipped model, 0.5 in the 22-style run
     w_foot: float = 0.0
+    # a style adversary on the neutral stack's output (models.style_erd.StyleAdversary: the
+    # generator leaves the input's style out of it); not in the paper, off in the shipped model
+    w_style_adversary: float = 0.0
+    lr_adversary: float = 2e-4
     # windows of the unlabelled clips (DataConfig.unlabelled) per iteration, each restyled into a
     # random style: critic and content terms only (they have no style to reconstruct)
     unlabelled_batch: int = 8
@@ -113,8 +117,8 @@ class _Stylize(nn.Module):
         super().__init__()
         self.model = model
 
-    def forward(self, features: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        return self.model.stylize(features, target)
+    def forward(self, features: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.model.stylize(features, target, with_neutral=True)
 
 
 class Trainer(ResumableTrainer):
@@ -145,6 +149,12 @@ class Trainer(ResumableTrainer):
         self.dis_synced = self.synced(self.dis)
         self.opt_g = torch.optim.Adam(self.model.parameters(), lr=cfg.lr_gen)
         self.opt_d = torch.optim.Adam(self.dis.parameters(), lr=cfg.lr_dis)
+        self.adversary = None
+        if cfg.w_style_adversary:
+            self.adversary = StyleAdversary(cfg.latent, len(data.styles)).to(self.device)
+            self.adversary_synced = self.synced(self.adversary)
+            self.opt_a = torch.optim.Adam(self.adversary.parameters(), lr=cfg.lr_adversary)
+            self.PARTS = (*type(self).PARTS, "adversary", "opt_a")
         val_rng = np.random.default_rng([cfg.seed, 3])
         self.val_windows = tuple(t.to(self.device) for t in windows(data.splits["val"], cfg.window, 128, val_rng))
         self.val_targets = other_styles(self.val_windows[1], len(data.styles), val_rng)
@@ -166,7 +176,8 @@ class Trainer(ResumableTrainer):
             u, _, _ = windows(self.data.unlabelled, cfg.window, cfg.unlabelled_batch, rng)
             u, u_target = self.shard(u, torch.from_numpy(rng.integers(0, n_styles, len(u))))
             source, target = torch.cat([x, u]), torch.cat([other, u_target])
-        out = self.losses.views(self.stylize(torch.cat([x, source]), torch.cat([style, target])))
+        output, neutral = self.stylize(torch.cat([x, source]), torch.cat([style, target]))
+        out = self.losses.views(output)
         rec = {k: v[:batch] for k, v in out.items()}
         fake = {k: v[batch:] for k, v in out.items()}
         source_views = self.losses.views(frames(source))
@@ -200,12 +211,22 @@ class Trainer(ResumableTrainer):
         foot = self.losses.foot(fake, source)
         ramp = min(1.0, (iteration + 1) / cfg.warmup) if cfg.warmup else 1.0
         total = sum(terms.values()) + ramp * (cfg.w_adv * adv + cfg.w_per * per + cfg.w_foot * foot)
+        # the style adversary reads the input's style in the neutral stack's output of the
+        # labelled windows; its reversed gradient teaches the generator to leave none there
+        told = torch.zeros(())
+        if self.adversary is not None:
+            told = F.cross_entropy(self.adversary_synced(neutral[:batch]), style)
+            total = total + ramp * cfg.w_style_adversary * told
+            self.opt_a.zero_grad()
         self.opt_g.zero_grad()
         total.backward()
         self.opt_g.step()
+        if self.adversary is not None:
+            self.opt_a.step()
         update_average(self.ema, self.model, cfg.ema)
         return {**{k: v.item() for k, v in terms.items()}, "rec": sum(terms.values()).item(),
-                "adv": adv.item(), "per": per.item(), "foot": foot.item(), "critic": critic.item(), "gp": gp.item()}
+                "adv": adv.item(), "per": per.item(), "foot": foot.item(), "critic": critic.item(), "gp": gp.item(),
+                **({"style_told": told.item()} if self.adversary is not None else {})}
 
     @torch.no_grad()
     def validate(self, model: StyleERD | None = None) -> dict[str, float]:
