@@ -299,3 +299,22 @@ def test_val_targets_are_styles_that_have_val_takes_when_some_have_none():
     a = most.val_targets(every, style[:3] % 3, 3, 16, np.random.default_rng(1))
     b = training_data.other_styles(style[:3] % 3, 3, np.random.default_rng(1))
     assert torch.equal(a, b)
+
+
+def test_the_val_style_figure_reads_the_styles_the_val_windows_show(data, tmp_path):
+    # Bandai dataset-1 has no val takes: its styles have no mean among the val windows' features
+    # (64 windows: torch.cdist then takes its matrix form, where an infinite mean was NaN everywhere)
+    trainer = most.Trainer(most.tiny_config(val_windows=64), data, tmp_path, progress=False)
+    x, style, target, s1, s2 = trainer.val_windows
+    keep = style != style[0]  # one style the windows do not show
+    trainer.val_windows = (x[keep], style[keep], target[keep], s1[keep], s2[keep])
+    got = trainer.validate(trainer.most)["val_transfer_style_acc"]
+    m, (x, style, target, s1, _) = trainer.most, trainer.val_windows
+    with torch.no_grad():
+        enc_x = m.encoder(x)
+        full = trainer._passes.full(m.transfer(enc_x, m.encoder(s1)), x[..., trainer.losses.contact_cols])
+        fake, real = m.encoder(full)[0].flatten(1), enc_x[0].flatten(1)
+    shown = sorted(set(style.tolist()))
+    means = {k: real[style == k].mean(0) for k in shown}
+    nearest = [min(shown, key=lambda k: float((f - means[k]).norm())) for f in fake]
+    assert got == round(float(np.mean(np.array(nearest) == target.numpy())), 4)

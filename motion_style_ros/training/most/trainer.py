@@ -327,10 +327,11 @@ class Trainer(ResumableTrainer):
         full = Passes(m, self.losses).full(fake, x[..., self.losses.contact_cols])
         s_fake = m.encoder(full)[0].flatten(1)
         s_real = enc_x[0].flatten(1)
-        n_styles = len(self.data.styles)
-        means = torch.stack([s_real[style == k].mean(0) if (style == k).any()
-                             else torch.full_like(s_real[0], float("inf")) for k in range(n_styles)])
-        nearest = torch.cdist(s_fake, means).argmin(-1)
+        # the styles these val windows show (Bandai dataset-1 has no val takes): an absent style's
+        # mean would be infinite, and cdist's matrix form turns that into NaN for every style
+        present = style.unique()
+        means = torch.stack([s_real[style == k].mean(0) for k in present])
+        nearest = present[torch.cdist(s_fake, means).argmin(-1)]
         return {**val_scores(rec),
                 "val_disentangle": round(self._rec(fake, twin).item(), 5),
                 "val_pose_change_m": round(moved.norm(dim=-1).mean().item(), 4),
