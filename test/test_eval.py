@@ -72,6 +72,23 @@ def test_oracle_skips_pairs_without_a_real_target_take(clips, judges):
     assert report["systems"]["oracle"]["overall"]["pairs"] == len(pairs) - 1
 
 
+def test_pairs_into_a_style_the_model_was_not_trained_on_are_skipped_with_the_reason(clips, judges):
+    walks = [c for c in clips if c[0].content == "walk"]
+    pairs = [harness.Pair(walks[0][0], t) for t in ("feminine", "youthful") if t != walks[0][0].style]
+    asked = []
+
+    def stylize(source, target):
+        asked.append(target)
+        return source
+
+    known = harness.known_styles_only(stylize, ["normal", "youthful"], "most.onnx")
+    report = harness.evaluate({"most": known}, walks, pairs, *judges, progress=False)
+    skipped = report["systems"]["most"]["skipped"]
+    assert [s["target"] for s in skipped] == ["feminine"]
+    assert skipped[0]["reason"] == "most.onnx was not trained on feminine"
+    assert asked == ["youthful"] and report["systems"]["most"]["overall"]["pairs"] == 1
+
+
 def test_identity_keeps_content_and_misses_the_style(report):
     identity = report["systems"]["identity"]["overall"]
     assert identity["content_accuracy"] >= 0.95

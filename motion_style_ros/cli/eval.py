@@ -110,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.evaluation import harness
     from motion_style_ros.runtime.backends import backend, with_feature
-    from motion_style_ros.runtime.offline import stylizer
+    from motion_style_ros.runtime.offline import default_model, stylizer
+    from motion_style_ros.runtime.onnx_model import model_path, read_card
 
     names = args.stylizer or []
     if args.reference_codes and (not names or not all(backend(n).reference_clips for n in names)):
@@ -161,6 +162,9 @@ def run(args: argparse.Namespace) -> int:
 
         stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed,
                                              args.same_content, _overrides(args)) for name in names}
+    for name in names:
+        path = model_path(args.model or default_model(name))
+        stylizers[name] = harness.known_styles_only(stylizers[name], read_card(path)["styles"], path.name)
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
     consistencies = _consistency(args, stylizers, clips, pairs) if args.consistency else None
     stylizers.update(harness.baselines(clips, args.seed))

@@ -68,6 +68,18 @@ class Pair:
     target: str
 
 
+def known_styles_only(stylize: Stylizer, styles: list[str], model: str) -> Stylizer:
+    """``stylize`` with the pairs whose target ``model`` was not trained on skipped, with the
+    reason (a model trained with styles left out, on the set whose takes are restyled)."""
+
+    def skipping(source: Motion, target_style: str) -> Motion:
+        if target_style not in styles:
+            raise SkipPair(f"{model} was not trained on {target_style}")
+        return stylize(source, target_style)
+
+    return skipping
+
+
 def held_out_clips(root: Path | None = None, progress: bool = True, dataset: int = 2,
                    folder: Path | str | None = None) -> list[Clip]:
     """The held-out test takes of one Bandai set (dataset-1's: its second walk takes, and the
