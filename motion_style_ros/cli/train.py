@@ -39,11 +39,12 @@ def add_parser(subparsers):
                     "its model card. " + _RESUMABLE.format("recurrent"),
     )
     _budget_flags(recurrent, minutes=110.0)
-    recurrent.add_argument("--foot-weight", type=float, default=0.0, metavar="W",
-                           help="weight of the foot-contact loss (default: 0)")
-    recurrent.add_argument("--style-adversary", type=float, default=0.0, metavar="W",
+    recurrent.add_argument("--foot-weight", type=float, default=None, metavar="W",
+                           help="weight of the foot-contact loss (default: the trainer's Config, off)")
+    recurrent.add_argument("--style-adversary", type=float, default=None, metavar="W",
                            help="weight of a style adversary on the neutral stack's output (the generator "
-                                "learns to leave the input's style out of it; not in the paper; default: 0)")
+                                "learns to leave the input's style out of it; not in the paper; default: "
+                                "the trainer's Config, off)")
     _output_flags(recurrent, "style_erd.onnx and its card")
     recurrent.set_defaults(func=run_recurrent)
     stgcn = targets.add_parser(
@@ -301,21 +302,26 @@ def _reconstruction(val: dict, what: str = "reconstruction") -> str:
     return f"val {what} {val['val_rec']:.3f} ({val['val_rot_deg']:.1f} deg rotation RMS)"
 
 
-def run_recurrent(args) -> int:
+def _model_flags(args, fields: dict[str, str]) -> tuple[dict, str]:
+    """A trainer's own flags that were given (``fields``: flag attribute -> config field): the
+    config changes and the flags as the resuming command repeats them. Weights (the float flags)
+    are checked to be 0 or more."""
     from motion_style_ros.errors import MotionStyleError
 
-    def checked() -> None:
-        for flag in ("foot_weight", "style_adversary"):
-            if not getattr(args, flag) >= 0:
-                raise MotionStyleError(f"--{flag.replace('_', '-')} must be 0 or more, got {getattr(args, flag):g}")
+    given = {flag: getattr(args, flag) for flag in fields if getattr(args, flag) is not None}
+    for flag, value in given.items():
+        if isinstance(value, float) and not value >= 0:
+            raise MotionStyleError(f"--{flag.replace('_', '-')} must be 0 or more, got {value:g}")
+    return ({fields[flag]: value for flag, value in given.items()},
+            "".join(f" --{flag.replace('_', '-')} {value:g}" for flag, value in given.items()))
 
-    recurrent, out, fields, recipe = _stylizer_run(args, "recurrent", check=checked)
-    cfg = recurrent.Config(seed=args.seed, w_foot=args.foot_weight, w_style_adversary=args.style_adversary,
-                           **fields)
-    for flag in ("foot_weight", "style_adversary"):
-        if getattr(args, flag):
-            recipe += f" --{flag.replace('_', '-')} {getattr(args, flag):g}"
-    card = recurrent.train(cfg, out, **_run_settings(args, "recurrent", recipe))
+
+def run_recurrent(args) -> int:
+    flags = {"foot_weight": "w_foot", "style_adversary": "w_style_adversary"}
+    recurrent, out, fields, recipe = _stylizer_run(args, "recurrent", check=lambda: _model_flags(args, flags))
+    changes, given = _model_flags(args, flags)
+    cfg = recurrent.Config(seed=args.seed, **fields, **changes)
+    card = recurrent.train(cfg, out, **_run_settings(args, "recurrent", recipe + given))
     return _report(card, out, _reconstruction, "style_erd")
 
 
@@ -357,18 +363,13 @@ def run_most(args) -> int:
     flags = {"content_weight": "w_content", "content_net_weight": "w_content_net", "dec_blocks": "dec_blocks"}
 
     def checked() -> None:
-        for flag in ("content_weight", "content_net_weight"):
-            value = getattr(args, flag)
-            if value is not None and not value >= 0:
-                raise MotionStyleError(f"--{flag.replace('_', '-')} must be 0 or more, got {value:g}")
+        _model_flags(args, flags)
         if args.dec_blocks is not None and not 1 <= args.dec_blocks <= 8:
             raise MotionStyleError(f"--dec-blocks must be 1 to 8 (the paper's code: 3), got {args.dec_blocks}")
 
     most, out, fields, recipe = _stylizer_run(args, "most", "the MoST trainer does not restyle unlabelled clips",
                                               checked)
-    given = {flag: getattr(args, flag) for flag in flags if getattr(args, flag) is not None}
-    changes = {flags[flag]: value for flag, value in given.items()}
-    after = "".join(f" --{flag.replace('_', '-')} {value:g}" for flag, value in given.items())
+    changes, after = _model_flags(args, flags)
     card = most.train(most.Config(seed=args.seed, **fields, **changes), out,
                       **_run_settings(args, "most", recipe, after=after))
     return _report(card, out, lambda val: (

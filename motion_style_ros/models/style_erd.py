@@ -288,15 +288,17 @@ class FTAttDiscriminator(nn.Module):
 
 
 class _Reverse(torch.autograd.Function):
-    """Identity forward; the gradient negated on the way back (Ganin and Lempitsky's reversal)."""
+    """Identity forward; the gradient negated and scaled on the way back (Ganin and Lempitsky's
+    reversal)."""
 
     @staticmethod
-    def forward(ctx, x: torch.Tensor) -> torch.Tensor:
+    def forward(ctx, x: torch.Tensor, scale: float) -> torch.Tensor:
+        ctx.scale = scale
         return x.view_as(x)
 
     @staticmethod
-    def backward(ctx, grad: torch.Tensor) -> torch.Tensor:
-        return -grad
+    def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None]:
+        return -ctx.scale * grad, None
 
 
 class StyleAdversary(nn.Module):
@@ -311,10 +313,10 @@ class StyleAdversary(nn.Module):
                                       nn.LeakyReLU(0.2))
         self.head = nn.Linear(width, n_styles)
 
-    def forward(self, neutral: torch.Tensor) -> torch.Tensor:
-        """``neutral (B, T, latent)`` -> style logits ``(B, styles)``, the gradient to ``neutral``
-        reversed."""
-        h = self.features(_Reverse.apply(neutral).transpose(1, 2))
+    def forward(self, neutral: torch.Tensor, reversal: float = 1.0) -> torch.Tensor:
+        """``neutral (B, T, latent)`` -> style logits ``(B, styles)``; the gradient to ``neutral``
+        reversed and scaled by ``reversal`` (the adversary itself learns at its own rate)."""
+        h = self.features(_Reverse.apply(neutral, reversal).transpose(1, 2))
         return self.head(h.mean(dim=-1))
 
 

@@ -40,6 +40,8 @@ from torch import nn
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.models.most import Discriminator, MoST, MostConfig, StyleFeatures
+from motion_style_ros.training import hardware
+from motion_style_ros.training.content import ContentConfig, content_network
 from motion_style_ros.training.data import (
     FPS,
     Clips,
@@ -54,8 +56,6 @@ from motion_style_ros.training.loop import (
     fit_for_export,
     update_average,
 )
-from motion_style_ros.training import hardware
-from motion_style_ros.training.content import ContentConfig, content_network
 from motion_style_ros.training.losses import Losses, pose, val_scores
 from motion_style_ros.training.most.export import write_model
 

@@ -212,11 +212,12 @@ class Trainer(ResumableTrainer):
         ramp = min(1.0, (iteration + 1) / cfg.warmup) if cfg.warmup else 1.0
         total = sum(terms.values()) + ramp * (cfg.w_adv * adv + cfg.w_per * per + cfg.w_foot * foot)
         # the style adversary reads the input's style in the neutral stack's output of the
-        # labelled windows; its reversed gradient teaches the generator to leave none there
+        # labelled windows at its own rate; the generator gets its gradient reversed and weighted,
+        # so it learns to leave no style there
         told = torch.zeros(())
         if self.adversary is not None:
-            told = F.cross_entropy(self.adversary_synced(neutral[:batch]), style)
-            total = total + ramp * cfg.w_style_adversary * told
+            told = F.cross_entropy(self.adversary_synced(neutral[:batch], ramp * cfg.w_style_adversary), style)
+            total = total + told
             self.opt_a.zero_grad()
         self.opt_g.zero_grad()
         total.backward()
