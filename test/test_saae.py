@@ -18,9 +18,9 @@ from motion_style_ros.models.saae import (
     Decoder,
     Encoder,
     positions,
-    reverse,
     tiny,
 )
+from motion_style_ros.models.style_erd import reverse
 from motion_style_ros.runtime.contract import check_card
 from motion_style_ros.runtime.saae import SaaeSession, Sampler, prior_windows
 from motion_style_ros.training import data as training_data

@@ -13,8 +13,9 @@ style transfer between motion capture sequences"): plain SAAE, Model1 and Model2
   style code (Model2), or one constant 0 (the plain SAAE, which has no style input; the one-wide
   zero keeps every variant's ONNX interface the same).
 - :class:`Critic`: the prior discriminator (code -> real/fake logit) and the style discriminators
-  (code -> style logits). The one on the content code is read through :func:`reverse` (a
-  gradient-reversal layer, Ganin and Lempitsky 2015): it learns to recover the style while the
+  (code -> style logits). The one on the content code is read through
+  :func:`~motion_style_ros.models.style_erd.reverse` (a gradient-reversal layer, Ganin and
+  Lempitsky 2015): it learns to recover the style while the
   encoder learns to hide it. Model2's second one reads the style code with its gradient as it is,
   so the style code carries the style; it is exported with the style encoder as its classifier.
 
@@ -75,23 +76,6 @@ def tiny(styles: tuple[str, ...], variant: str = "model2", **changes) -> SaaeCon
     """A very small network with the real interface (tests, runtime development)."""
     return SaaeConfig(styles, variant, **{"window": 16, "hidden": 16, "content_dim": 6, "style_dim": 3,
                                           "critic_hidden": 16, **changes})
-
-
-class _Reverse(torch.autograd.Function):
-    @staticmethod
-    def forward(ctx, x: torch.Tensor, scale: float) -> torch.Tensor:
-        ctx.scale = scale
-        return x.view_as(x)
-
-    @staticmethod
-    def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None]:
-        return -ctx.scale * grad, None
-
-
-def reverse(x: torch.Tensor, scale: float = 1.0) -> torch.Tensor:
-    """The identity forwards, the gradient times ``-scale`` backwards: a critic read through it
-    learns to recover what it reads while what feeds it learns to hide that."""
-    return _Reverse.apply(x, scale)
 
 
 class Encoder(nn.Module):

@@ -288,9 +288,6 @@ class FTAttDiscriminator(nn.Module):
 
 
 class _Reverse(torch.autograd.Function):
-    """Identity forward; the gradient negated and scaled on the way back (Ganin and Lempitsky's
-    reversal)."""
-
     @staticmethod
     def forward(ctx, x: torch.Tensor, scale: float) -> torch.Tensor:
         ctx.scale = scale
@@ -299,6 +296,12 @@ class _Reverse(torch.autograd.Function):
     @staticmethod
     def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None]:
         return -ctx.scale * grad, None
+
+
+def reverse(x: torch.Tensor, scale: float = 1.0) -> torch.Tensor:
+    """The identity forwards, the gradient times ``-scale`` backwards: a critic read through it
+    learns to recover what it reads while what feeds it learns to hide that."""
+    return _Reverse.apply(x, scale)
 
 
 class StyleAdversary(nn.Module):
@@ -316,7 +319,7 @@ class StyleAdversary(nn.Module):
     def forward(self, neutral: torch.Tensor, reversal: float = 1.0) -> torch.Tensor:
         """``neutral (B, T, latent)`` -> style logits ``(B, styles)``; the gradient to ``neutral``
         reversed and scaled by ``reversal`` (the adversary itself learns at its own rate)."""
-        h = self.features(_Reverse.apply(neutral, reversal).transpose(1, 2))
+        h = self.features(reverse(neutral, reversal).transpose(1, 2))
         return self.head(h.mean(dim=-1))
 
 

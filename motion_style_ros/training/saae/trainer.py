@@ -38,9 +38,9 @@ from motion_style_ros.models.saae import (
     Encoder,
     SaaeConfig,
     positions,
-    reverse,
     style_input,
 )
+from motion_style_ros.models.style_erd import reverse
 from motion_style_ros.training.data import (
     Data,
     DataConfig,
