@@ -23,8 +23,9 @@ def test_bench_nodes_measures_every_row(tmp_path, ros_env):
     lines = result.stdout.splitlines()
     assert "random-weight model" in result.stdout and "load average" in result.stdout
     header = next(i for i, line in enumerate(lines) if line.split()[:3] == ["node", "rate", "(Hz)"])
-    rows = [line.split() for line in lines[header + 1:header + 4]]
-    assert [r[:3] for r in rows] == [["relay", "60", "1"], ["stylizer", "60", "1"], ["stylizer", "60", "2"]]
+    rows = [line.split() for line in lines[header + 1:header + 5]]
+    assert [r[:3] for r in rows] == [["relay", "60", "1"], ["stylizer", "60", "1"], ["relay", "60", "2"],
+                                     ["stylizer", "60", "2"]]
     for node, rate, performers, frames, p50, p99, worst, dropped, node_p99, cpu, own, delay in rows:
         assert int(frames) >= 10 * int(performers)  # about 60 per performer
         assert 0 < float(p50) <= float(p99) <= float(worst)

@@ -413,8 +413,8 @@ def run_nodes(args) -> int:
               f"{1000 * args.lookahead / card['fps']:.0f} ms earlier (not in the latencies below, "
               "which run from the input's stamp to the output's arrival)")
     rows = [(node, rate, 1) for rate in rates for node in ("relay", "stylizer")]
-    if args.performers > 1:
-        rows.append(("stylizer", max(rates), args.performers))
+    if args.performers > 1:  # the relay for as many streams: rclpy's share of the stylizer's row
+        rows += [("relay", max(rates), args.performers), ("stylizer", max(rates), args.performers)]
     if args.reference:  # the reference changes at the highest rate, with every performer
         rows = [("relay", max(rates), 1), ("stylizer", max(rates), args.performers),
                 ("stylizer+reference", max(rates), args.performers)]
@@ -502,8 +502,9 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
 
     node = graph.node
     prefixes = [""] if performers == 1 else [f"performer{k}" for k in range(performers)]
+    settings = {"performers": prefixes, **settings}
     if name == "stylizer":
-        settings = {"performers": prefixes, "input_fps": float(rate), **settings}
+        settings["input_fps"] = float(rate)
     proc = graph.start(name, qos_reliability="reliable", qos_depth=100, **settings)
     reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     topics = [f"{p}/" if p else "" for p in prefixes]

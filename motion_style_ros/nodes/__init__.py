@@ -77,6 +77,11 @@ class PlayerNode(Parameters, Node):
         self.done = Future()
 
 
+def prefixed(prefix: str, name: str) -> str:
+    """A performer's topic: ``name`` under its ``prefix`` (``''``: the node's namespace)."""
+    return f"{prefix.rstrip('/')}/{name}" if prefix else name
+
+
 def joint_state(names: Sequence[str], positions: np.ndarray, stamp, frame_id: str = "") -> JointState:
     msg = JointState(name=list(names), position=doubles(positions))
     msg.header.stamp = stamp

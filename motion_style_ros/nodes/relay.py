@@ -1,8 +1,9 @@
-"""``relay``: every JointState on ``joint_states`` republished on ``stylized/joint_states`` as it
-came, with the stylizer's QoS parameters.
+"""``relay``: every JointState on ``N/joint_states`` republished on ``N/stylized/joint_states`` as
+it came, for each topic prefix ``N`` of ``performers`` (as the stylizer's), with the stylizer's QoS
+parameters.
 
-``motion-style bench nodes`` measures it beside the stylizer: its latency is what DDS and an
-rclpy node cost on this machine, the floor under the stylizer's.
+``motion-style bench nodes`` measures it beside the stylizer: its latency and CPU are what DDS and
+an rclpy node cost on this machine for that many streams, the floor under the stylizer's.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import sys
 
 from sensor_msgs.msg import JointState
 
-from motion_style_ros.nodes import PlayerNode, run
+from motion_style_ros.nodes import PlayerNode, prefixed, run
 
 NAME = "relay"
 
@@ -20,8 +21,9 @@ class Relay(PlayerNode):
     def __init__(self) -> None:
         super().__init__(NAME)
         qos = self.stream_qos()
-        publisher = self.create_publisher(JointState, "stylized/joint_states", qos)
-        self.create_subscription(JointState, "joint_states", publisher.publish, qos)
+        for prefix in self.param("performers", [""], "topic prefix of each stream ('' = the node's namespace)"):
+            publisher = self.create_publisher(JointState, prefixed(prefix, "stylized/joint_states"), qos)
+            self.create_subscription(JointState, prefixed(prefix, "joint_states"), publisher.publish, qos)
 
 
 def main(args=None) -> int:

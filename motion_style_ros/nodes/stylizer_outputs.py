@@ -16,7 +16,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.nodes import doubles, joint_state
+from motion_style_ros.nodes import doubles, joint_state, prefixed
 from motion_style_ros.runtime.performer import PerformerStream
 from motion_style_ros.runtime.trajectory import Chunk
 
@@ -53,7 +53,7 @@ class Performer:
         self.stream: PerformerStream | None = None
 
     def topic(self, name: str) -> str:
-        return f"{self.prefix.rstrip('/')}/{name}" if self.prefix else name
+        return prefixed(self.prefix, name)
 
     def subscribe(self) -> None:
         self.subscription = self.node.create_subscription(
