@@ -102,3 +102,12 @@ def test_unseen_clips_leave_out_what_a_model_trained_on_and_recognition_is_split
     assert set(by_source) == {"cmu 02", "xia"}
     rows = [r for r in report["rows"] if unseen.capture_setup(r["clip"]) == "xia"]
     assert by_source["xia"] == np.mean([r["judged_style_1"] == r["style"] for r in rows])
+    # among the stylizer's two styles: the likelier of the two, whatever else the judge reads
+    for clip_title, clip in clips:
+        p = judge.judge([clip]).probabilities[0]
+        likelier = max(["normal", "elderly"], key=lambda s: p[judge.labels.index(s)])
+        for r in report["rows"]:
+            if r["clip"] == clip_title:
+                assert r["recognised_1_among_styles"] == (r["style"] == likelier)
+                assert r["recognised_1_among_styles"] >= r["recognised_1"]  # a judged target stays one
+    assert report["summary"]["style_recognised_1_among_styles"] == 0.5  # one of two styles per clip

@@ -88,17 +88,22 @@ def check(source: Motion, output: Motion) -> dict:
     }
 
 
-def _recognition(judges: list[Judge], source: np.ndarray, output: Motion, style: str) -> dict:
-    """Per judge panel: the judged style of ``output``, whether it is the target, and how much the
-    target's probability rose from the source's (``source``: its probabilities per judge)."""
+def _recognition(judges: list[Judge], source: np.ndarray, output: Motion, style: str,
+                 styles: list[str]) -> dict:
+    """Per judge panel: the judged style of ``output``, whether it is the target (among every
+    style the judge knows, and among the stylizer's ``styles`` only: the choice its user has), and
+    how much the target's probability rose from the source's (``source``: its probabilities per
+    judge)."""
     row = {}
     for k, (judge, before) in enumerate(zip(judges, source), start=1):
         if style not in judge.labels:
             continue
         column = judge.labels.index(style)
         result = judge.judge([output])
+        offered = [judge.labels.index(s) for s in styles if s in judge.labels]
         row[f"judged_style_{k}"] = result.labels[0]
         row[f"recognised_{k}"] = result.labels[0] == style
+        row[f"recognised_{k}_among_styles"] = bool(offered[result.probabilities[0, offered].argmax()] == column)
         row[f"target_gain_{k}"] = float(result.probabilities[0, column] - before[column])
     return row
 
@@ -118,7 +123,7 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
             output = stylize(source, style)
             row = {"clip": title, "style": style, **check(source, output)}
             if row["finite"]:
-                row.update(_recognition(judges, before, output, style))
+                row.update(_recognition(judges, before, output, style, styles))
                 row["jerk_ratio"] = metrics.jerk(output) / metrics.jerk(source)
                 jerks.setdefault(float(source.fps), []).append(row["jerk_ratio"])
             rows.append(row)
@@ -141,6 +146,8 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
         judged = [r for r in rows if f"recognised_{k}" in r]
         if judged:
             summary[f"style_recognised_{k}"] = float(np.mean([r[f"recognised_{k}"] for r in judged]))
+            summary[f"style_recognised_{k}_among_styles"] = float(
+                np.mean([r[f"recognised_{k}_among_styles"] for r in judged]))
             summary[f"target_raised_{k}"] = float(np.mean([r[f"target_gain_{k}"] > 0 for r in judged]))
             summary[f"target_gain_median_{k}"] = float(np.median([r[f"target_gain_{k}"] for r in judged]))
             groups = sorted({capture_setup(r["clip"]) for r in judged})
