@@ -89,18 +89,17 @@ def check(source: Motion, output: Motion) -> dict:
 
 
 def _recognition(judges: list[Judge], source: np.ndarray, output: Motion, style: str,
-                 styles: list[str]) -> dict:
+                 offered: list[list[int]]) -> dict:
     """Per judge panel: the judged style of ``output``, whether it is the target (among every
-    style the judge knows, and among the stylizer's ``styles`` only: the choice its user has), and
-    how much the target's probability rose from the source's (``source``: its probabilities per
-    judge)."""
+    style the judge knows, and among the stylizer's styles only, the judge's columns ``offered``:
+    the choice its user has), and how much the target's probability rose from the source's
+    (``source``: its probabilities per judge)."""
     row = {}
-    for k, (judge, before) in enumerate(zip(judges, source), start=1):
+    for k, (judge, before, offered) in enumerate(zip(judges, source, offered), start=1):
         if style not in judge.labels:
             continue
         column = judge.labels.index(style)
         result = judge.judge([output])
-        offered = [judge.labels.index(s) for s in styles if s in judge.labels]
         row[f"judged_style_{k}"] = result.labels[0]
         row[f"recognised_{k}"] = result.labels[0] == style
         row[f"recognised_{k}_among_styles"] = bool(offered[result.probabilities[0, offered].argmax()] == column)
@@ -116,6 +115,7 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
     for the jerk ratio there."""
     judges = judges or []
     rows, jerks = [], {}
+    offered = [[judge.labels.index(s) for s in styles if s in judge.labels] for judge in judges]
     spread = [styles[round(i * (len(styles) - 1) / max(rate_styles - 1, 1))] for i in range(rate_styles)]
     for title, source in tqdm(clips, desc="unseen clips", disable=not progress):
         before = [judge.judge([source]).probabilities[0] for judge in judges]
@@ -123,7 +123,7 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
             output = stylize(source, style)
             row = {"clip": title, "style": style, **check(source, output)}
             if row["finite"]:
-                row.update(_recognition(judges, before, output, style, styles))
+                row.update(_recognition(judges, before, output, style, offered))
                 row["jerk_ratio"] = metrics.jerk(output) / metrics.jerk(source)
                 jerks.setdefault(float(source.fps), []).append(row["jerk_ratio"])
             rows.append(row)
