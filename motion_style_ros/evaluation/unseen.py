@@ -88,6 +88,11 @@ def check(source: Motion, output: Motion) -> dict:
     }
 
 
+def offered_columns(judges: list[Judge], styles: list[str]) -> list[list[int]]:
+    """Per judge, its columns of ``styles`` (the ones it knows): what a stylizer's user can ask for."""
+    return [[judge.labels.index(s) for s in styles if s in judge.labels] for judge in judges]
+
+
 def _recognition(judges: list[Judge], source: np.ndarray, output: Motion, style: str,
                  offered: list[list[int]]) -> dict:
     """Per judge panel: the judged style of ``output``, whether it is the target (among every
@@ -115,7 +120,7 @@ def evaluate(stylize: Stylizer, styles: list[str], clips: list[tuple[str, Motion
     for the jerk ratio there."""
     judges = judges or []
     rows, jerks = [], {}
-    offered = [[judge.labels.index(s) for s in styles if s in judge.labels] for judge in judges]
+    offered = offered_columns(judges, styles)
     spread = [styles[round(i * (len(styles) - 1) / max(rate_styles - 1, 1))] for i in range(rate_styles)]
     for title, source in tqdm(clips, desc="unseen clips", disable=not progress):
         before = [judge.judge([source]).probabilities[0] for judge in judges]

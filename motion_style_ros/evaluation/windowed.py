@@ -212,7 +212,7 @@ def enrolment(style: str, out_dir: Path, model: str | Path | None = None, clips:
     recognises it, and how much the style's probability rose from the source's. ``backend``: one
     with a style bank (stgcn, most), run with the published settings."""
     from motion_style_ros.evaluation.harness import held_out_clips
-    from motion_style_ros.evaluation.unseen import _recognition, neutral_clips
+    from motion_style_ros.evaluation.unseen import _recognition, neutral_clips, offered_columns
     from motion_style_ros.io.datasets import index_bandai, load_bandai
     from motion_style_ros.runtime import style_bank
     from motion_style_ros.runtime.offline import stylizer
@@ -243,13 +243,14 @@ def enrolment(style: str, out_dir: Path, model: str | Path | None = None, clips:
     sources = {"bandai2_test": list(one_per_cell.values()),
                "unseen": [m for _, m in neutral_clips(root)]}
     judges = judges or []
+    offered = offered_columns(judges, [*session.card["styles"], style])  # the model's and the enrolled
     report = {"style": style, "enrolled_from": list(entry.clips), "head": entry.head,
               "closest_known": entry.probabilities, "bank": str(bank)}
     for name, motions in sources.items():
         rows = []
         for source in motions:
             before = [judge.judge([source]).probabilities[0] for judge in judges]
-            rows.append(_recognition(judges, before, enrolled(source, style), style))
+            rows.append(_recognition(judges, before, enrolled(source, style), style, offered))
         report[name] = {"outputs": len(rows), **{
             key: float(np.mean([r[f"recognised_{k}"] for r in rows])) if key.startswith("recog")
             else float(np.median([r[f"target_gain_{k}"] for r in rows]))
