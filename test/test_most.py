@@ -312,9 +312,46 @@ def test_the_val_style_figure_reads_the_styles_the_val_windows_show(data, tmp_pa
     m, (x, style, target, s1, _) = trainer.most, trainer.val_windows
     with torch.no_grad():
         enc_x = m.encoder(x)
-        full = trainer._passes.full(m.transfer(enc_x, m.encoder(s1)), x[..., trainer.losses.contact_cols])
+        full = trainer._passes.full(m.transfer(enc_x, m.encoder(s1), x), x[..., trainer.losses.contact_cols])
         fake, real = m.encoder(full)[0].flatten(1), enc_x[0].flatten(1)
     shown = sorted(set(style.tolist()))
     means = {k: real[style == k].mean(0) for k in shown}
     nearest = [min(shown, key=lambda k: float((f - means[k]).norm())) for f in fake]
     assert got == round(float(np.mean(np.array(nearest) == target.numpy())), 4)
+
+
+def test_a_residual_generator_starts_at_its_input_and_learns_a_change_that_exports(data, clip, tmp_path):
+    from dataclasses import replace
+
+    from motion_style_ros.training.most.trainer import paper_differences
+
+    cfg = most.tiny_config(residual=True, lr=1e-3)
+    trainer = most.Trainer(cfg, data, tmp_path / "ckpt", progress=False)
+    m = trainer.most.eval()
+    x = torch.from_numpy(clip[None, :16].astype(np.float32))
+    s = torch.from_numpy(clip[None, 48:64].astype(np.float32))
+    with torch.no_grad():
+        start = m(x, s)[0].numpy()
+    assert np.abs(start - clip[:16, :130]).max() < 1e-5  # the input's own frames, whatever the style
+    trainer.run(iterations=4, log_every=4, val_every=1000)
+    with torch.no_grad():
+        moved = trainer.most.eval()(x, s)[0].numpy()
+    assert np.abs(moved - clip[:16, :130]).max() > 1e-3  # trained: a change of its own
+    path = tmp_path / "most.onnx"
+    means = (np.zeros((len(data.styles), len(PARTS), cfg.dim), np.float32),) * 2
+    most.export_onnx(trainer.most, means, path)
+    assert most.parity(trainer.most, path, clip) < 1e-4
+    assert any("residual" in line for line in paper_differences(cfg))
+    assert not any("residual" in line for line in paper_differences(replace(cfg, residual=False)))
+
+
+def test_the_residual_flag_reaches_the_config_and_the_resuming_command():
+    from argparse import Namespace
+
+    from motion_style_ros.cli.train import _model_flags
+
+    args = Namespace(residual=True, dec_blocks=3, content_weight=None)
+    changes, given = _model_flags(args, {"residual": "residual", "dec_blocks": "dec_blocks",
+                                         "content_weight": "w_content"})
+    assert changes == {"residual": True, "dec_blocks": 3}
+    assert given == " --residual --dec-blocks 3"

@@ -162,11 +162,12 @@ def run(args: argparse.Namespace) -> int:
 
         stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed,
                                              args.same_content, _overrides(args)) for name in names}
+    references = dict(stylizers)  # CC and SC++ switch their same_content (dataset-2, every style known)
     for name in names:
         path = model_path(args.model or default_model(name))
         stylizers[name] = harness.known_styles_only(stylizers[name], read_card(path)["styles"], path.name)
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
-    consistencies = _consistency(args, stylizers, clips, pairs) if args.consistency else None
+    consistencies = _consistency(args, references, clips, pairs) if args.consistency else None
     stylizers.update(harness.baselines(clips, args.seed))
     settings = {"pairs_per_cell": args.pairs_per_cell, "seed": args.seed, "alpha": args.alpha,
                 "dataset": args.data or args.dataset,

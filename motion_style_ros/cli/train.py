@@ -100,6 +100,9 @@ def add_parser(subparsers):
                            "not in the paper; default: the trainer's Config, off)")
     most.add_argument("--dec-blocks", type=int, default=None, metavar="N",
                       help="generator blocks (the paper's code: 3; default: the trainer's Config)")
+    most.add_argument("--residual", action="store_const", const=True, default=None,
+                      help="the generator gives a change to the input's own frames, starting at none "
+                           "(not in the paper; default: the trainer's Config, off)")
     _budget_flags(most, minutes=100.0)
     _output_flags(most, "most*.onnx, the style means and the card")
     most.set_defaults(func=run_most)
@@ -313,7 +316,8 @@ def _model_flags(args, fields: dict[str, str]) -> tuple[dict, str]:
         if isinstance(value, float) and not value >= 0:
             raise MotionStyleError(f"--{flag.replace('_', '-')} must be 0 or more, got {value:g}")
     return ({fields[flag]: value for flag, value in given.items()},
-            "".join(f" --{flag.replace('_', '-')} {value:g}" for flag, value in given.items()))
+            "".join(f" --{flag.replace('_', '-')}" + ("" if value is True else f" {value:g}")
+                    for flag, value in given.items()))
 
 
 def run_recurrent(args) -> int:
@@ -360,7 +364,8 @@ def run_saae(args) -> int:
 def run_most(args) -> int:
     from motion_style_ros.errors import MotionStyleError
 
-    flags = {"content_weight": "w_content", "content_net_weight": "w_content_net", "dec_blocks": "dec_blocks"}
+    flags = {"content_weight": "w_content", "content_net_weight": "w_content_net", "dec_blocks": "dec_blocks",
+             "residual": "residual"}
 
     def checked() -> None:
         _model_flags(args, flags)

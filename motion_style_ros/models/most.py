@@ -66,6 +66,9 @@ class MostConfig:
     dec_blocks: int = 2
     dis_blocks: int = 1
     ff_expand: float = 1.0  # feed-forward width over the temporal width (P * dim)
+    # the generator's heads give a change to the content window's own frames, not the frames
+    # themselves (not in the paper; the transfer starts from the input's action)
+    residual: bool = False
     n_features: int = 260
 
     @property
@@ -296,8 +299,10 @@ class AdaIN(nn.Module):
 
 
 class Generator(nn.Module):
-    """``(Y (B, T, P, D), m (B, P * D))`` -> raw ``[root | rot6d]`` frames ``(B, T, 130)``, 6D
-    rotations orthonormal."""
+    """``(Y (B, T, P, D), m (B, P * D))`` and the content window's raw features ``(B, T, F)`` ->
+    raw ``[root | rot6d]`` frames ``(B, T, 130)``, 6D rotations orthonormal. With ``residual``, the
+    heads add a change (in train-std units) to the content window's own frames and start at zero,
+    so an untrained generator returns its input."""
 
     def __init__(self, cfg: MostConfig, mean: np.ndarray, std: np.ndarray) -> None:
         super().__init__()
@@ -313,8 +318,13 @@ class Generator(nn.Module):
         out = slice(0, cfg.n_out)
         self.register_buffer("out_mean", torch.as_tensor(mean[out], dtype=torch.float32))
         self.register_buffer("out_std", torch.as_tensor(std[out], dtype=torch.float32))
+        self.residual = cfg.residual
+        if self.residual:
+            for head in (*self.limbs, self.pelvis, self.translation, self.velocity):
+                nn.init.zeros_(head.weight)
+                nn.init.zeros_(head.bias)
 
-    def forward(self, y: torch.Tensor, m: torch.Tensor) -> torch.Tensor:
+    def forward(self, y: torch.Tensor, m: torch.Tensor, base: torch.Tensor) -> torch.Tensor:
         h = y
         for adain, block in zip(self.adain, self.blocks):
             h = block(adain(h, m))
@@ -322,7 +332,8 @@ class Generator(nn.Module):
         root = h[:, :, -1]
         heads = [lin(h[:, :, k]) for k, lin in enumerate(self.limbs)]
         heads += [self.pelvis(root), self.translation(root), self.velocity(root)]
-        out = self.out_mean + self.out_std * torch.cat(heads, dim=-1)[..., self.unorder]
+        start = base[..., : self.out_mean.shape[0]] if self.residual else self.out_mean
+        out = start + self.out_std * torch.cat(heads, dim=-1)[..., self.unorder]
         rot6d = orthonormal_6d(out[..., OUT_ROOT:].unflatten(-1, (-1, 6))).flatten(-2)
         return torch.cat([out[..., :OUT_ROOT], rot6d], dim=-1)
 
@@ -337,15 +348,17 @@ class MoST(nn.Module):
         self.modulator = Modulator(cfg)
         self.generator = Generator(cfg, mean, std)
 
-    def transfer(self, content: tuple[torch.Tensor, ...], style: tuple[torch.Tensor, ...]) -> torch.Tensor:
-        """The content motion's encoding ``(S, Y, C)`` restyled like the style motion's."""
+    def transfer(self, content: tuple[torch.Tensor, ...], style: tuple[torch.Tensor, ...],
+                 base: torch.Tensor) -> torch.Tensor:
+        """The content motion's encoding ``(S, Y, C)`` restyled like the style motion's; ``base``:
+        the content motion's raw features (what a residual generator changes)."""
         _, y, c = content
         s_style, _, c_style = style
-        return self.generator(y, self.modulator(c, c_style, s_style))
+        return self.generator(y, self.modulator(c, c_style, s_style), base)
 
     def forward(self, content: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
         """Raw features of a content and a style window ``(B, T, F)`` -> the transfer ``(B, T, 130)``."""
-        return self.transfer(self.encoder(content), self.encoder(style))
+        return self.transfer(self.encoder(content), self.encoder(style), content)
 
 
 class Step(nn.Module):
@@ -363,7 +376,7 @@ class Step(nn.Module):
         s, y, c = self.model.encoder(features)
         own = self.model.modulator(c, c, s)
         ref = self.model.modulator(c, pooled, style)
-        return self.model.generator(y, own + alpha * (ref - own))
+        return self.model.generator(y, own + alpha * (ref - own), features)
 
 
 class StyleFeatures(nn.Module):

@@ -77,6 +77,7 @@ class Config(ContentConfig):
     dec_blocks: int = 2
     dis_blocks: int = 1
     ff_expand: float = 1.0
+    residual: bool = False  # the generator changes the input's frames (models.most.MostConfig)
     # optimisation: Adam as the paper's code (betas, weight decay); its rates (1e-5, 1e-6 over 300k
     # iterations) are far too slow for a two-hour run
     batch: int = 8
@@ -113,7 +114,7 @@ class Config(ContentConfig):
     def networks(self, styles: tuple[str, ...]) -> MostConfig:
         return MostConfig(styles, window=self.window, dim=self.dim, heads=self.heads,
                           enc_blocks=self.enc_blocks, dec_blocks=self.dec_blocks, dis_blocks=self.dis_blocks,
-                          ff_expand=self.ff_expand)
+                          ff_expand=self.ff_expand, residual=self.residual)
 
 
 def tiny_config(**changes) -> Config:
@@ -182,14 +183,15 @@ class Passes(nn.Module):
         m = self.model
         contacts = content[..., self.losses.contact_cols]
         enc_c, enc_s = m.encoder(content), m.encoder(style)
-        fake = m.transfer(enc_c, enc_s)
+        fake = m.transfer(enc_c, enc_s, content)
         with torch.no_grad():
-            twin = m.transfer(enc_c, m.encoder(style2))
-        rec = m.transfer(enc_c, enc_c)
+            twin = m.transfer(enc_c, m.encoder(style2), content)
+        rec = m.transfer(enc_c, enc_c, content)
         fake_full = self.full(fake, contacts)
         enc_f = m.encoder(fake_full)
         return {"fake": fake, "fake_full": fake_full, "twin": twin, "rec": rec,
-                "cyc_content": m.transfer(enc_f, enc_c), "cyc_style": m.transfer(enc_s, enc_f),
+                "cyc_content": m.transfer(enc_f, enc_c, fake_full),
+                "cyc_style": m.transfer(enc_s, enc_f, style),
                 "content_fake": enc_f[1], "content_in": enc_c[1]}
 
 
@@ -319,10 +321,10 @@ class Trainer(ResumableTrainer):
         x, style, target, s1, s2 = self.val_windows
         n_out = m.cfg.n_out
         enc_x = m.encoder(x)
-        rec = self.losses.reconstruction(self.losses.views(m.transfer(enc_x, enc_x)),
+        rec = self.losses.reconstruction(self.losses.views(m.transfer(enc_x, enc_x, x)),
                                          self.losses.views(x[..., :n_out]))
-        fake = m.transfer(enc_x, m.encoder(s1))
-        twin = m.transfer(enc_x, m.encoder(s2))
+        fake = m.transfer(enc_x, m.encoder(s1), x)
+        twin = m.transfer(enc_x, m.encoder(s2), x)
         moved = (pose(self.losses.views(fake)["pos"]) - pose(self.losses.views(x[..., :n_out])["pos"]))
         full = Passes(m, self.losses).full(fake, x[..., self.losses.contact_cols])
         s_fake = m.encoder(full)[0].flatten(1)
@@ -365,6 +367,8 @@ def paper_differences(cfg: Config) -> list[str]:
         ("6D rotations, positions, velocities and foot contacts per joint, the root block "
          "(facing-frame velocity, pelvis height, yaw rate) as the global translation and velocity"),
         "sinusoidal frame positions and learned part positions; no dropout",
+        *(["a residual generator: its heads give a change to the content window's own frames (zero "
+           "at the start), not the frames"] if cfg.residual else []),
         ("losses in the shared units (rotation angle, FK positions and velocities, root); the "
          "physics terms on FK pose velocity and acceleration, the root block's change and the "
          "feet's speed at the content window's contacts (transfer and content cycle)"
