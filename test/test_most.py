@@ -355,3 +355,64 @@ def test_the_residual_flag_reaches_the_config_and_the_resuming_command():
                                          "content_weight": "w_content"})
     assert changes == {"residual": True, "dec_blocks": 3}
     assert given == " --residual --dec-blocks 3"
+
+
+def _small_root(datasets, root):
+    """A datasets root of a few real files (symlinks): dataset-1's proud takes of four contents,
+    dataset-2's first walk takes of two styles (held-out test takes), one CMU walk and one Xia
+    neutral clip."""
+    sets = datasets / "bandai-namco"
+    for n, names in ((1, [f"dataset-1_{c}_proud_001" for c in ("bow", "bye", "byebye", "dash")]),
+                     (2, ["dataset-2_walk_normal_001", "dataset-2_walk_elderly_001"])):
+        folder = f"Bandai-Namco-Research-Motiondataset-{n}"
+        src, dst = sets / folder, root / "bandai-namco" / folder
+        (dst / "data").mkdir(parents=True)
+        (dst / "cfg").symlink_to(src / "cfg")
+        for name in names:
+            for ext in (".bvh", ".json"):
+                if (src / "data" / f"{name}{ext}").exists():
+                    (dst / "data" / f"{name}{ext}").symlink_to(src / "data" / f"{name}{ext}")
+    cmu = root / "cmu"
+    (cmu / "data" / "02").mkdir(parents=True)
+    (cmu / "data" / "02" / "02_01.bvh").symlink_to(datasets / "cmu" / "data" / "02" / "02_01.bvh")
+    lines = (datasets / "cmu" / "labels.csv").read_text().splitlines()
+    (cmu / "labels.csv").write_text("\n".join([lines[0], *(x for x in lines if x.startswith("data/02/02_01.bvh"))])
+                                    + "\n")
+    (root / "xia-test").mkdir()
+    (root / "xia-test" / "neutral_01_000.bvh").symlink_to(datasets / "xia-test" / "neutral_01_000.bvh")
+
+
+def test_eval_enrol_scores_a_style_enrolled_from_clips_end_to_end(data, datasets, tmp_path):
+    """`motion-style eval --enrol` through the CLI on a small real datasets root (it broke once
+    with no test running it): the enrolled style is asked of every held-out take and unseen clip,
+    and both judge panels score it. A tiny random model with windows long enough for the published
+    lookahead."""
+    import os
+    import subprocess
+    import sys
+    from dataclasses import replace
+
+    mean, std = training_data.normalisation(data.splits["train"].features, 0.05)
+    torch.manual_seed(0)
+    model = MoST(replace(tiny(data.styles), window=24), mean, std).eval()
+    exported = tmp_path / "model" / "most.onnx"
+    exported.parent.mkdir()
+    most.write_model(model, exported, {"data": "test"}, None,
+                     most.style_means(model, data.splits["train"], len(data.styles), 4, 0))
+    root = tmp_path / "datasets"
+    _small_root(datasets, root)
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "eval", "--stylizer", "most",
+                          "--model", str(exported), "--enrol", "proud", "--enrol-clips", "3", "--out", str(out),
+                          "--quiet"], capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "MOTION_STYLE_DATASETS": str(root)})
+    assert run.returncode == 0, run.stderr
+    report = json.loads((out / "enrolment.json").read_text())
+    assert report["style"] == "proud" and len(report["enrolled_from"]) == 3
+    assert all(name.startswith("dataset-1_") and "_proud_" in name for name in report["enrolled_from"])
+    assert report["bandai2_test"]["outputs"] == 2 and report["unseen"]["outputs"] == 2
+    for part in ("bandai2_test", "unseen"):
+        for k in (1, 2):
+            assert 0.0 <= report[part][f"recognised_{k}"] <= 1.0
+            assert np.isfinite(report[part][f"target_gain_median_{k}"])
+    assert (out / "enrolled_proud.json").is_file()
