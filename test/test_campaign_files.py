@@ -97,6 +97,7 @@ NODE_CASES = [
     ("vmc_bridge", {"osc_port": 0, "send_host": "no.such.host.invalid"}, "cannot send VMC"),
     ("vmc_bridge", {"osc_host": "no.such.host.invalid"}, "cannot receive VMC"),
     ("vmc_bridge", {"osc_port": 0, "output_topic": "bad topic!"}, "Invalid topic name"),
+    ("relay", {"performers": "['a', 'a']"}, "give distinct topic prefixes"),
 ]
 
 

@@ -13,6 +13,7 @@ import sys
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.nodes import PlayerNode, prefixed, run
+from motion_style_ros.runtime.stylizer_settings import check_prefixes
 
 NAME = "relay"
 
@@ -21,7 +22,9 @@ class Relay(PlayerNode):
     def __init__(self) -> None:
         super().__init__(NAME)
         qos = self.stream_qos()
-        for prefix in self.param("performers", [""], "topic prefix of each stream ('' = the node's namespace)"):
+        prefixes = self.param("performers", [""], "topic prefix of each stream ('' = the node's namespace)")
+        check_prefixes(prefixes)
+        for prefix in prefixes:
             publisher = self.create_publisher(JointState, prefixed(prefix, "stylized/joint_states"), qos)
             self.create_subscription(JointState, prefixed(prefix, "joint_states"), publisher.publish, qos)
 

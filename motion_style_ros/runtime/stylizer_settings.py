@@ -131,11 +131,16 @@ def check_start(values: dict) -> Backend:
     if values["style_bank"] and not spec.style_bank:
         raise MotionStyleError(f"parameter style_bank needs backend {' or '.join(with_feature('style_bank'))} "
                                f"(styles enrolled from clips); {backend} has a fixed set of styles")
-    prefixes = values["performers"]
+    check_prefixes(values["performers"])
+    return spec
+
+
+def check_prefixes(prefixes: list[str]) -> None:
+    """The ``performers`` parameter's check (the stylizer's and the relay's): a prefix twice would
+    stylize or republish its stream twice."""
     if not prefixes or len(set(prefixes)) != len(prefixes):
         raise MotionStyleError(f"parameter performers is {list(prefixes)}; give distinct topic "
                                "prefixes, e.g. ['alice', 'bob'] (or [''] for one performer)")
-    return spec
 
 
 def bounds(values: dict) -> Bounds:
