@@ -63,6 +63,9 @@ def test_the_bank_beside_the_model_is_read_by_default_and_refused_by_another_mod
         shutil.copy(f, tmp_path / f.name)
     style_bank.write(style_bank.path_beside(here), {"mine": entry}, "stgcn", session.model_digest)
     assert WindowedSession(here, window=16, lookahead=8).styles[-1] == "mine"
+    from motion_style_ros.cli.eval import _styles_offered  # eval asks the bank's styles too
+
+    assert _styles_offered(here) == [*STYLES, "mine"] and _styles_offered(model) == STYLES
     other = tmp_path / "other.json"
     style_bank.write(other, {"mine": entry}, "stgcn", "0" * 16)
     with pytest.raises(MotionStyleError, match="made for another model"):

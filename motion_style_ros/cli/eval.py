@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     from motion_style_ros.evaluation import harness
     from motion_style_ros.runtime.backends import backend, with_feature
     from motion_style_ros.runtime.offline import default_model, stylizer
-    from motion_style_ros.runtime.onnx_model import model_path, read_card
+    from motion_style_ros.runtime.onnx_model import model_path
 
     names = args.stylizer or []
     if args.reference_codes and (not names or not all(backend(n).reference_clips for n in names)):
@@ -165,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     references = dict(stylizers)  # CC and SC++ switch their same_content (dataset-2, every style known)
     for name in names:
         path = model_path(args.model or default_model(name))
-        stylizers[name] = harness.known_styles_only(stylizers[name], read_card(path)["styles"], path.name)
+        stylizers[name] = harness.known_styles_only(stylizers[name], _styles_offered(path), path.name)
     pairs = harness.make_pairs([info for info, _ in clips], args.pairs_per_cell, args.seed)
     consistencies = _consistency(args, references, clips, pairs) if args.consistency else None
     stylizers.update(harness.baselines(clips, args.seed))
@@ -206,6 +206,19 @@ def run(args: argparse.Namespace) -> int:
                   f"(e.g. {system['skipped'][0]['reason']})")
     print(f"wrote {json_path} and {png_path}")
     return 0
+
+
+def _styles_offered(path) -> list[str]:
+    """The styles a model's sessions offer: its card's and those of the style bank beside it,
+    which the sessions load by default (the bank itself is checked when a session opens it)."""
+    import json
+
+    from motion_style_ros.runtime.onnx_model import read_card
+    from motion_style_ros.runtime.style_bank import path_beside
+
+    bank = path_beside(path)
+    enrolled = list(json.loads(bank.read_text(encoding="utf-8"))["styles"]) if bank.is_file() else []
+    return [*read_card(path)["styles"], *enrolled]
 
 
 def _overrides(args: argparse.Namespace) -> dict:
