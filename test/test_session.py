@@ -433,6 +433,7 @@ def test_bench_command(model, capsys):
     largest = next(line for line in out.splitlines() if line.startswith("largest number"))
     assert int(largest.rsplit(":", 1)[1].split()[-1]) >= 0
     assert "model call alone, 1 performer, onnxruntime: p50" in out
+    assert "model call alone, 1 performer, onnxruntime, 33 ms apart: p50" in out
     paced = {line.split()[0]: line.split() for line in out.splitlines()
              if line.split()[:1] in (["default"], ["pipelined"])}
     assert paced["default"][1:3] == ["25.0", "ms"] and paced["pipelined"][1:3] == ["33.3", "ms"]

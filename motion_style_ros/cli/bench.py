@@ -148,7 +148,7 @@ def run_recurrent(args) -> int:
     frame = dict(zip(("p50_us", "p99_us"), np.percentile(frames, [50, 99]).round(1).tolist()))
     print(f"whole model frame back to back (1 performer, input at the model's {session.fps:g} Hz): "
           f"p50 {frame['p50_us']:.0f} us, p99 {frame['p99_us']:.0f} us")
-    calls = _model_calls(path, session.card, args.checkpoint, args.threads)
+    calls = _model_calls(path, session.card, args.checkpoint, args.threads, args.seconds)
     for name, (p50, p99) in calls.items():
         print(f"model call alone, 1 performer, {name}: p50 {p50:.0f} us, p99 {p99:.0f} us")
     if "torch" in calls:
@@ -239,9 +239,11 @@ def _reference_step() -> dict | None:
     return {"p50_us": round(p50, 1), "p99_us": round(p99, 1), "threads": REFERENCE_THREADS}
 
 
-def _model_calls(path, card: dict, checkpoint, threads: int, calls: int = 2000) -> dict:
-    """p50/p99 (us) of one streaming model call for one performer on ONNX Runtime, and on torch
-    when a training checkpoint and torch are at hand."""
+def _model_calls(path, card: dict, checkpoint, threads: int, seconds: float, calls: int = 2000) -> dict:
+    """p50/p99 (us) of one streaming model call for one performer on ONNX Runtime back to back and
+    a model frame apart for ``seconds`` (the core spinning in between: what a live stream's call
+    pays for weights that left the caches), and on torch when a training checkpoint and torch are
+    at hand."""
     import time
     from pathlib import Path
 
@@ -256,9 +258,12 @@ def _model_calls(path, card: dict, checkpoint, threads: int, calls: int = 2000) 
               "state": np.zeros((1, card["state_size"]), np.float32),
               "reset": np.zeros((1, 1), np.float32)}
 
-    def timed(call) -> tuple[float, float]:
+    def timed(call, gap: float = 0.0, count: int = calls) -> tuple[float, float]:
         micros = []
-        for _ in range(calls):
+        for _ in range(count):
+            due = time.monotonic() + gap
+            while time.monotonic() < due:  # busy, not asleep: only the time between calls differs
+                pass
             start = time.perf_counter_ns()
             call()
             micros.append((time.perf_counter_ns() - start) / 1000)
@@ -266,6 +271,9 @@ def _model_calls(path, card: dict, checkpoint, threads: int, calls: int = 2000) 
 
     onnx = OnnxModel(path, threads)
     out = {"onnxruntime": timed(lambda: onnx.run(**inputs))}
+    period = 1.0 / card["fps"]
+    out[f"onnxruntime, {1000 * period:.0f} ms apart"] = timed(lambda: onnx.run(**inputs), period,
+                                                               max(3, round(seconds / period)))
     default = Path.home() / ".cache/motion_style_ros/checkpoints/recurrent_0/checkpoint.pt"
     checkpoint = Path(checkpoint) if checkpoint else default
     try:
