@@ -162,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
 
         stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed,
                                              args.same_content, _overrides(args)) for name in names}
-    references = dict(stylizers)  # CC and SC++ switch their same_content (dataset-2, every style known)
+    references = dict(stylizers)  # unwrapped: the consistencies switch their same_content
     for name in names:
         path = model_path(args.model or default_model(name))
         stylizers[name] = harness.known_styles_only(stylizers[name], _styles_offered(path), path.name)
@@ -210,15 +210,11 @@ def run(args: argparse.Namespace) -> int:
 
 def _styles_offered(path) -> list[str]:
     """The styles a model's sessions offer: its card's and those of the style bank beside it,
-    which the sessions load by default (the bank itself is checked when a session opens it)."""
-    import json
-
+    which the sessions load by default."""
     from motion_style_ros.runtime.onnx_model import read_card
-    from motion_style_ros.runtime.style_bank import path_beside
+    from motion_style_ros.runtime.style_bank import names_beside
 
-    bank = path_beside(path)
-    enrolled = list(json.loads(bank.read_text(encoding="utf-8"))["styles"]) if bank.is_file() else []
-    return [*read_card(path)["styles"], *enrolled]
+    return [*read_card(path)["styles"], *names_beside(path)]
 
 
 def _overrides(args: argparse.Namespace) -> dict:

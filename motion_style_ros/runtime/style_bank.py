@@ -74,14 +74,7 @@ def read(path: Path, model_digest: str, style_dim: int, styles: list[str],
     """The entries of a bank for the model with this digest (codes of ``style_dim`` values read
     under one of ``heads``, default the styles and ``mix``), or a one-line reason."""
     heads = [*styles, MIX] if heads is None else heads
-    try:
-        raw = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MotionStyleError(f"{path}: no such style bank") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise MotionStyleError(f"{path}: not a style bank ({type(exc).__name__})") from None
-    if not isinstance(raw, dict) or raw.get("version") != VERSION or not isinstance(raw.get("styles"), dict):
-        raise MotionStyleError(f"{path}: not a version-{VERSION} style bank")
+    raw = _load(path)
     if raw.get("model_digest") != model_digest:
         raise MotionStyleError(f"{path}: made for another model ({raw.get('model')!r}, digest "
                                f"{raw.get('model_digest')}); enrol the styles again for this one")
@@ -97,6 +90,25 @@ def read(path: Path, model_digest: str, style_dim: int, styles: list[str],
                                    "from one of the model's heads")
         entries[check_name(name, styles)] = entry
     return entries
+
+
+def _load(path: Path) -> dict:
+    """A bank file's JSON, checked to be a bank of this version, or a one-line reason."""
+    try:
+        raw = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise MotionStyleError(f"{path}: no such style bank") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise MotionStyleError(f"{path}: not a style bank ({type(exc).__name__})") from None
+    if not isinstance(raw, dict) or raw.get("version") != VERSION or not isinstance(raw.get("styles"), dict):
+        raise MotionStyleError(f"{path}: not a version-{VERSION} style bank")
+    return raw
+
+
+def names_beside(model: Path) -> list[str]:
+    """The styles of the bank beside ``model`` (what its sessions load by default), none without one."""
+    beside = path_beside(model)
+    return list(_load(beside)["styles"]) if beside.is_file() else []
 
 
 def open_bank(bank: str | Path | None, model: Path, model_digest: str, style_dim: int, styles: list[str],
