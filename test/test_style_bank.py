@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 from onnx_fixtures import windowed_model
 
+from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import bvh
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 from motion_style_ros.runtime import style_bank
 from motion_style_ros.runtime.windowed import WindowedSession
@@ -113,6 +115,15 @@ def test_the_cli_adds_lists_and_removes_styles(model, datasets, tmp_path):
     assert again.returncode == 2 and "--replace" in again.stderr and "Traceback" not in again.stderr
     assert "bouncy: 3 clips" in cli("list").stdout
     assert WindowedSession(model, lookahead=8, bank=bank).styles[-1] == "bouncy"
+    short = tmp_path / "short.bvh"
+    bvh.write(short, bvh.BvhClip.from_motion(synthetic_motion("walk", 30.0, 0.3), scale=100.0))
+    with_short = cli("add", "brisk", files[0], str(short))
+    assert with_short.returncode == 0, with_short.stderr
+    assert "brisk: 1 clips" in with_short.stdout
+    assert "left out short.bvh: reference clip too short" in with_short.stderr
+    only_short = cli("add", "other", str(short))
+    assert only_short.returncode == 2 and "none of the 1 clips can serve: short.bvh" in only_short.stderr
+    assert cli("remove", "brisk").returncode == 0
     missing = cli("add", "other", str(tmp_path / "nope.bvh"))
     assert missing.returncode == 2 and "nope.bvh" in missing.stderr
     assert cli("remove", "bouncy").returncode == 0

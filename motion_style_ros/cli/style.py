@@ -70,10 +70,38 @@ def run(args) -> int:
         name = style_bank.check_name(args.name, known)
         if name in entries and not args.replace:
             raise MotionStyleError(f"{bank} has a style {name!r} already; --replace to enrol it again")
-        clips = [canonical_clip(c) for c in args.clips]
-        entries[name] = entry = session.enrol(clips, [Path(c).name for c in args.clips], args.head)
+        files, clips = _usable(session, args.clips, canonical_clip)
+        entries[name] = entry = session.enrol(clips, files, args.head)
         print(f"{name}: {len(clips)} clips, {entry.frames} frames at {session.fps:g} fps, read under "
               f"{entry.head!r} (closest: {', '.join(f'{k} {v:.2f}' for k, v in entry.probabilities.items())})")
     style_bank.write(bank, entries, session.card["name"], session.model_digest)
     print(f"wrote {bank}: {len(entries)} enrolled styles")
     return 0
+
+
+def _usable(session, paths: list[str], read) -> tuple[list[str], list]:
+    """The clips that can serve as references, by file name; the others are left out with a
+    warning that says why (too short for the model's window, not finite), so that one short
+    take among a user's clips does not stop the enrolment. A file that cannot be read stops it."""
+    import sys
+    from pathlib import Path
+
+    from motion_style_ros.cli.main import PROG
+    from motion_style_ros.errors import MotionStyleError
+
+    files, clips, skipped = [], [], []
+    for path in paths:
+        clip = read(path)
+        try:
+            session.reference_clip(clip, session.window)
+        except MotionStyleError as exc:
+            skipped.append(f"{Path(path).name}: {exc}")
+            continue
+        files.append(Path(path).name)
+        clips.append(clip)
+    for line in skipped:
+        print(f"{PROG} style: warning: left out {line}", file=sys.stderr)
+    if not clips:
+        raise MotionStyleError(f"none of the {len(paths)} clips can serve: {skipped[0]}"
+                               + (f" (and {len(skipped) - 1} more)" if len(skipped) > 1 else ""))
+    return files, clips
