@@ -357,13 +357,13 @@ def test_the_residual_flag_reaches_the_config_and_the_resuming_command():
     assert given == " --residual --dec-blocks 3"
 
 
-def _small_root(datasets, root):
+def _small_root(datasets, root, dataset2=("dataset-2_walk_normal_001", "dataset-2_walk_elderly_001")):
     """A datasets root of a few real files (symlinks): dataset-1's proud takes of four contents,
-    dataset-2's first walk takes of two styles (held-out test takes), one CMU walk and one Xia
-    neutral clip."""
+    the ``dataset2`` takes (by default the first walk takes of two styles, held-out test takes), one
+    CMU walk and one Xia neutral clip."""
     sets = datasets / "bandai-namco"
     for n, names in ((1, [f"dataset-1_{c}_proud_001" for c in ("bow", "bye", "byebye", "dash")]),
-                     (2, ["dataset-2_walk_normal_001", "dataset-2_walk_elderly_001"])):
+                     (2, dataset2)):
         folder = f"Bandai-Namco-Research-Motiondataset-{n}"
         src, dst = sets / folder, root / "bandai-namco" / folder
         (dst / "data").mkdir(parents=True)
@@ -382,6 +382,21 @@ def _small_root(datasets, root):
     (root / "xia-test" / "neutral_01_000.bvh").symlink_to(datasets / "xia-test" / "neutral_01_000.bvh")
 
 
+def _tiny_exported(data, folder):
+    """A tiny random MoST exported with its style means, windows long enough for the published
+    lookahead: what the end-to-end CLI runs stylize with."""
+    from dataclasses import replace
+
+    mean, std = training_data.normalisation(data.splits["train"].features, 0.05)
+    torch.manual_seed(0)
+    model = MoST(replace(tiny(data.styles), window=24), mean, std).eval()
+    exported = folder / "most.onnx"
+    folder.mkdir()
+    most.write_model(model, exported, {"data": "test"}, None,
+                     most.style_means(model, data.splits["train"], len(data.styles), 4, 0))
+    return exported
+
+
 def test_eval_enrol_scores_a_style_enrolled_from_clips_end_to_end(data, datasets, tmp_path):
     """`motion-style eval --enrol` through the CLI on a small real datasets root (it broke once
     with no test running it): the enrolled style is asked of every held-out take and unseen clip,
@@ -390,15 +405,8 @@ def test_eval_enrol_scores_a_style_enrolled_from_clips_end_to_end(data, datasets
     import os
     import subprocess
     import sys
-    from dataclasses import replace
 
-    mean, std = training_data.normalisation(data.splits["train"].features, 0.05)
-    torch.manual_seed(0)
-    model = MoST(replace(tiny(data.styles), window=24), mean, std).eval()
-    exported = tmp_path / "model" / "most.onnx"
-    exported.parent.mkdir()
-    most.write_model(model, exported, {"data": "test"}, None,
-                     most.style_means(model, data.splits["train"], len(data.styles), 4, 0))
+    exported = _tiny_exported(data, tmp_path / "model")
     root = tmp_path / "datasets"
     _small_root(datasets, root)
     out = tmp_path / "out"
@@ -416,3 +424,29 @@ def test_eval_enrol_scores_a_style_enrolled_from_clips_end_to_end(data, datasets
             assert 0.0 <= report[part][f"recognised_{k}"] <= 1.0
             assert np.isfinite(report[part][f"target_gain_median_{k}"])
     assert (out / "enrolled_proud.json").is_file()
+
+
+def test_eval_consistency_reports_cc_and_sc_through_the_cli(data, datasets, tmp_path):
+    """`motion-style eval --reference-codes --consistency` through the CLI (it failed for a stop
+    with no test running it) on five held-out takes (walk and run, normal and elderly, two normal
+    walks) and the train takes the SC++ figure compares with."""
+    import os
+    import subprocess
+    import sys
+
+    exported = _tiny_exported(data, tmp_path / "model")
+    root = tmp_path / "datasets"
+    takes = [f"dataset-2_{c}_{s}_{t}" for c in ("walk", "run") for s in ("normal", "elderly") for t in ("001", "002")]
+    takes.append("dataset-2_walk_normal_008")  # a second held-out take of one cell: a same-content reference
+    _small_root(datasets, root, takes)
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "eval", "--stylizer", "most",
+                          "--model", str(exported), "--reference-codes", "--consistency", "--out", str(out),
+                          "--quiet"], capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "MOTION_STYLE_DATASETS": str(root)})
+    assert run.returncode == 0, run.stderr
+    figures = json.loads((out / "report.json").read_text())["consistency"]["most"]
+    assert 5 <= figures["pairs"] <= 20  # CC and SC++ of the 5 held-out takes, both reference kinds, where one exists
+    for key in ("cc_same", "cc_other", "sc_same", "sc_other"):
+        assert figures[key] is not None and np.isfinite(figures[key]) and figures[key] > 0.0, (key, figures)
+    assert "CC" in run.stdout
