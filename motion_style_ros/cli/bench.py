@@ -70,8 +70,9 @@ def add_parser(subparsers):
     )
     nodes.add_argument("--rates", default="30,60,120", metavar="HZ,HZ,...",
                        help="input rates with one performer (default: 30,60,120)")
-    nodes.add_argument("--performers", type=int, default=4,
-                       help="performers at the highest rate, each on its own topics (default: 4)")
+    nodes.add_argument("--performers", default="4", metavar="N,N,...",
+                       help="performers at the highest rate, each on its own topics; with several counts, "
+                            "a row pair for each and the largest count the stylizer held (default: 4)")
     nodes.add_argument("--seconds", type=float, default=10.0,
                        help="measured stream time per row in seconds (default: 10)")
     nodes.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
@@ -102,12 +103,7 @@ def run_recurrent(args) -> int:
 
     from motion_style_ros.errors import MotionStyleError
 
-    try:
-        counts = [int(n) for n in args.performers.split(",")]
-    except ValueError:
-        raise MotionStyleError(
-            f"--performers takes whole numbers separated by commas, got {args.performers!r}"
-        ) from None
+    counts = _counts(args.performers)
     if min(counts) < 1 or args.seconds <= 0 or args.input_fps <= 0:
         raise MotionStyleError("--performers, --seconds and --input-fps must be positive")
     path = _model(args.model)
@@ -403,7 +399,8 @@ def run_nodes(args) -> int:
         rates = [float(r) for r in args.rates.split(",")]
     except ValueError:
         raise MotionStyleError(f"--rates takes numbers separated by commas, got {args.rates!r}") from None
-    if min(rates) <= 0 or args.seconds <= 0 or args.performers < 1:
+    counts = _counts(args.performers)
+    if min(rates) <= 0 or args.seconds <= 0 or min(counts) < 1:
         raise MotionStyleError("--rates, --seconds and --performers must be positive")
     spec = backend(args.backend)
     if args.reference and not spec.reference_clips:
@@ -421,11 +418,11 @@ def run_nodes(args) -> int:
               f"{1000 * args.lookahead / card['fps']:.0f} ms earlier (not in the latencies below, "
               "which run from the input's stamp to the output's arrival)")
     rows = [(node, rate, 1) for rate in rates for node in ("relay", "stylizer")]
-    if args.performers > 1:  # the relay for as many streams: rclpy's share of the stylizer's row
-        rows += [("relay", max(rates), args.performers), ("stylizer", max(rates), args.performers)]
-    if args.reference:  # the reference changes at the highest rate, with every performer
-        rows = [("relay", max(rates), 1), ("stylizer", max(rates), args.performers),
-                ("stylizer+reference", max(rates), args.performers)]
+    for n in (n for n in counts if n > 1):  # the relay for as many streams: rclpy's share of the stylizer's row
+        rows += [("relay", max(rates), n), ("stylizer", max(rates), n)]
+    if args.reference:  # the reference changes at the highest rate, with the most performers
+        rows = [("relay", max(rates), 1), ("stylizer", max(rates), max(counts)),
+                ("stylizer+reference", max(rates), max(counts))]
     delays = {rate: 1000 * _output_delay(path, args, rate) for rate in rates}  # ms, the stylizer's
     logs = Path(tempfile.mkdtemp(prefix="motion_style_bench_"))
     print(f"machine: {os.cpu_count()} cores, load average {_load()} (before); node logs in {logs}")
@@ -435,6 +432,7 @@ def run_nodes(args) -> int:
     columns = ("node", "rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)",
                "dropped", "node p99", "CPU (%)", "bench CPU", "delay (ms)")
     print(" ".join(f"{c:>10}" for c in columns))
+    held = []  # performer counts the stylizer held at the highest rate
     with LiveGraph("motion_style_bench", logs) as graph:
         for node, rate, performers in rows:
             latency_ms, sent, node_p99, cpu, own, gaps = _stream_nodes(
@@ -446,12 +444,18 @@ def run_nodes(args) -> int:
             print(f"{node.split('+')[0]:>10} {rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} "
                   f"{worst:>10.2f} {sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} "
                   f"{own:>10.0f} {delay:>10.1f}")
+            if node == "stylizer" and rate == max(rates) and sent == len(latency_ms) and p99 <= HELD_P99_MS:
+                held.append(performers)
             if args.reference:
                 print(f"{'':>10} longest gap between two outputs of a performer {gaps['output_ms']:.1f} ms "
                       f"({gaps['output_ms'] * rate / 1000:.2f} input periods), between two inputs sent "
                       f"{gaps['input_ms']:.1f} ms; added by the node {gaps['stall_ms']:.1f} ms "
                       f"({gaps['stall_ms'] * rate / 1000:.2f} periods); reference changes {gaps['changes']}"
                       + (" (the clip read and encoded on the node's worker thread)" if gaps["changes"] else ""))
+    if len(counts) > 1 and not args.reference:
+        print(f"the stylizer held (no frame dropped, p99 <= {HELD_P99_MS:g} ms) at {max(rates):g} Hz: "
+              + (f"{max(held)} performers" if held else "none of the counts")
+              + f" of {', '.join(map(str, sorted({1, *counts})))} tried")
     print(f"load average {_load()} (after); node p99: the stylizer's own p99 (ms, worst performer) "
           "from a message's arrival in its DDS reader to the stylized frame's publication, from its "
           "/diagnostics; CPU: the node process, % of one core; bench CPU: this process's "
@@ -469,6 +473,7 @@ def _output_delay(path, args, rate: float) -> float:
     return spec.session_class()(path, input_fps=rate, pipelined=args.pipelined, **extra).latency
 
 
+HELD_P99_MS = 10.0  # a node holds a count of performers when none drops and p99 stays within this
 NODE_WARMUP = 2.0  # s of streaming before measuring: ONNX Runtime's first runs, DDS settling
 NODE_DRAIN = 1.0  # s after the last frame for its output to arrive
 
@@ -597,3 +602,13 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
             "changes": sum(f.done() and all(r.successful for r in f.result().results) for f in changes)}
     return (np.array(latency) / 1e6, sum(map(len, sent)), max(node_p99.values(), default=np.nan),
             cpu, own, gaps)
+
+
+def _counts(text: str) -> list[int]:
+    """``--performers``' counts: whole numbers separated by commas, or a one-line error."""
+    from motion_style_ros.errors import MotionStyleError
+
+    try:
+        return [int(n) for n in text.split(",")]
+    except ValueError:
+        raise MotionStyleError(f"--performers takes whole numbers separated by commas, got {text!r}") from None
