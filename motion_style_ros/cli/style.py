@@ -38,7 +38,6 @@ def run(args) -> int:
 
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime import style_bank
-    from motion_style_ros.io.canonical import canonical_clip
     from motion_style_ros.runtime.most import MostSession
     from motion_style_ros.runtime.onnx_model import model_path, read_card
     from motion_style_ros.runtime.windowed import WindowedSession
@@ -70,7 +69,7 @@ def run(args) -> int:
         name = style_bank.check_name(args.name, known)
         if name in entries and not args.replace:
             raise MotionStyleError(f"{bank} has a style {name!r} already; --replace to enrol it again")
-        files, clips = _usable(session, args.clips, canonical_clip)
+        files, clips = _usable(session, args.clips)
         entries[name] = entry = session.enrol(clips, files, args.head)
         print(f"{name}: {len(clips)} clips, {entry.frames} frames at {session.fps:g} fps, read under "
               f"{entry.head!r} (closest: {', '.join(f'{k} {v:.2f}' for k, v in entry.probabilities.items())})")
@@ -79,7 +78,7 @@ def run(args) -> int:
     return 0
 
 
-def _usable(session, paths: list[str], read) -> tuple[list[str], list]:
+def _usable(session, paths: list[str]) -> tuple[list[str], list]:
     """The clips that can serve as references, by file name; the others are left out with a
     warning that says why (too short for the model's window, not finite), so that one short
     take among a user's clips does not stop the enrolment. A file that cannot be read stops it."""
@@ -88,10 +87,11 @@ def _usable(session, paths: list[str], read) -> tuple[list[str], list]:
 
     from motion_style_ros.cli.main import PROG
     from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.io.canonical import canonical_clip
 
     files, clips, skipped = [], [], []
     for path in paths:
-        clip = read(path)
+        clip = canonical_clip(path)
         try:
             session.reference_clip(clip, session.window)
         except MotionStyleError as exc:
