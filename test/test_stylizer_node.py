@@ -28,6 +28,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.io import bags
 from motion_style_ros.io.joint_state import JointStateLayout, to_ros
+from motion_style_ros.nodes import EXECUTOR_VARIABLE, EXECUTORS, WithInfo, executor
 from motion_style_ros.nodes.bvh_player import load
 from motion_style_ros.nodes.stylizer import stamp_seconds
 from motion_style_ros.runtime.session import RecurrentSession
@@ -261,17 +262,21 @@ def test_two_performers_in_one_node_are_independent(rig, recorded, model):
     assert difference(positions(rig.states["p2"]), [e for e, _, _ in offline(model, b)]) > 1e-4
 
 
-def test_a_pipelined_node_publishes_the_same_frames_one_frame_later(model, ros_env, recorded, tmp_path):
+@pytest.mark.parametrize("executor", EXECUTORS)
+def test_a_pipelined_node_publishes_the_same_frames_one_frame_later(model, ros_env, recorded, tmp_path,
+                                                                    executor):
     """``pipelined:=true``: each frame is published before its own model frames run, so it shows
-    what the default node shows one input frame earlier."""
-    proc = start_node("stylizer", ros_env, log=tmp_path / "pipelined.log",
-                      remaps={"__node": "stylizer_pipelined"}, model=model, performers=["pipe"],
+    what the default node shows one input frame earlier; in either executor (the single-threaded
+    one is what rclpy before Kilted has)."""
+    proc = start_node("stylizer", {**ros_env, EXECUTOR_VARIABLE: executor}, log=tmp_path / "pipelined.log",
+                      remaps={"__node": f"stylizer_pipelined_{executor}"}, model=model, performers=["pipe"],
                       input_fps=FPS, qos_reliability="reliable", qos_depth=1000, pipelined="true")
     listener = Listener("pipelined_test")
     try:
         publisher = listener.node.create_publisher(JointState, "pipe/joint_states", RELIABLE)
         got = listener.subscribe("pipe/stylized/joint_states", qos=RELIABLE)
         output = listener.subscriptions["pipe/stylized/joint_states"]
+        diagnostics = listener.subscribe("/diagnostics", DiagnosticArray, RELIABLE)
         listener.spin_until(lambda: publisher.get_subscription_count() and output.get_publisher_count(),
                             "the pipelined stylizer", procs=[proc])
         frames = recorded[:80]
@@ -282,6 +287,14 @@ def test_a_pipelined_node_publishes_the_same_frames_one_frame_later(model, ros_e
         unpipelined = [e for e, _, _ in offline(model, frames)]
         assert difference(positions(got), unpipelined[:1] + unpipelined[:-1]) < 1e-5
         assert difference(positions(got), unpipelined) > 1e-3  # it is not the unpipelined output
+        # the message info reached the node: its latency runs from each message's DDS receipt
+        def latencies():
+            return [float(kv.value) for a in diagnostics for st in a.status
+                    if st.name.startswith(f"stylizer_pipelined_{executor}:") for kv in st.values
+                    if kv.key == "latency_p99_ms" and np.isfinite(float(kv.value))]
+
+        listener.spin_until(latencies, "the node's latency in its diagnostics", procs=[proc])
+        assert 0.0 < max(latencies()) < 1000.0
     finally:
         listener.close()
         stop(proc)
@@ -526,3 +539,48 @@ def test_the_stylized_stream_mapped_onto_a_real_humanoid(ros_env, model, recorde
     assert np.abs(q - np.array(expected)).max() < 1e-6  # the node maps what it stylized
     for chunk in chunks:
         check_trajectory_chunk(chunk, target.names)
+
+
+@pytest.mark.parametrize("choice", EXECUTORS)
+def test_a_subscription_gets_the_message_info_in_either_executor(monkeypatch, choice):
+    """The nodes spin in rclpy's EventsExecutor where rclpy has it, and a WithInfo callback gets
+    each message with its info (the receipt time the stylizer's latency starts from) there as in
+    the single-threaded executor."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    monkeypatch.setenv(EXECUTOR_VARIABLE, choice)
+    started = not rclpy.ok()
+    if started:
+        rclpy.init()
+    node = Node(f"with_info_{choice}")
+    try:
+        spinner = executor()
+        assert type(spinner).__name__ == {"events": "EventsExecutor",
+                                          "single_threaded": SingleThreadedExecutor.__name__}[choice]
+        got = []
+        node.create_subscription(JointState, f"with_info_{choice}", WithInfo(lambda m, i: got.append((m, i))), 10)
+        publisher = node.create_publisher(JointState, f"with_info_{choice}", 10)
+        spinner.add_node(node)
+        before = time.time_ns()
+        for k in range(5):
+            publisher.publish(message(T0 + k * PERIOD, ["a"], [float(k)]))
+        deadline = time.monotonic() + TIMEOUT
+        while len(got) < 5 and time.monotonic() < deadline:
+            spinner.spin_once(timeout_sec=0.05)
+        assert [m.position[0] for m, _ in got] == [0.0, 1.0, 2.0, 3.0, 4.0]
+        assert all(before <= info["received_timestamp"] <= time.time_ns() for _, info in got)
+        spinner.remove_node(node)
+    finally:
+        node.destroy_node()
+        if started:
+            rclpy.shutdown()
+
+
+def test_a_bad_executor_choice_is_one_line_naming_the_choices(monkeypatch):
+    from motion_style_ros.errors import MotionStyleError
+
+    monkeypatch.setenv(EXECUTOR_VARIABLE, "multi_threaded")
+    with pytest.raises(MotionStyleError, match="allowed: events, single_threaded"):
+        executor()

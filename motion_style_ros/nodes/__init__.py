@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import array
 import gc
+import inspect
 import os
 import re
 import sys
@@ -19,7 +20,7 @@ import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -95,6 +96,45 @@ def doubles(values: np.ndarray) -> array.array:
     return array.array("d", np.ascontiguousarray(values, dtype=np.float64).tobytes())
 
 
+EXECUTOR_VARIABLE = "MOTION_STYLE_EXECUTOR"
+EXECUTORS = ("events", "single_threaded")
+SPIN_SECONDS = 0.1  # a node checks whether it is done (or shut down) at least this often
+
+
+def executor() -> Executor:
+    """The executor a node spins in: rclpy's ``EventsExecutor`` where this rclpy has it (Kilted
+    on; it takes and dispatches in C++, which halves a relay node's CPU at 16-32 streams here: see
+    docs/models.md), else the ``SingleThreadedExecutor``; ``MOTION_STYLE_EXECUTOR=single_threaded``
+    picks the latter anyway."""
+    choice = os.environ.get(EXECUTOR_VARIABLE, "events")
+    if choice not in EXECUTORS:
+        raise MotionStyleError(f"{EXECUTOR_VARIABLE} is {choice!r}; allowed: {', '.join(EXECUTORS)}")
+    if choice == "events":
+        try:
+            from rclpy.experimental import EventsExecutor
+        except ImportError:  # rclpy before Kilted
+            pass
+        else:
+            return EventsExecutor()
+    return SingleThreadedExecutor()
+
+
+class WithInfo:
+    """A subscription callback ``fn(msg, info)`` that gets the message info under either executor:
+    rclpy 9.1's ``EventsExecutor`` calls a callback that takes message info with one ``(msg,
+    info)`` tuple, where the ``SingleThreadedExecutor`` passes two arguments."""
+
+    __signature__ = inspect.Signature([inspect.Parameter(n, inspect.Parameter.POSITIONAL_ONLY)
+                                       for n in ("msg", "info")])
+
+    def __init__(self, fn: Callable) -> None:
+        self.fn = fn
+
+    def __call__(self, *args) -> None:
+        msg, info = args if len(args) == 2 else args[0]
+        self.fn(msg, info)
+
+
 def _init(args) -> None:
     """``rclpy.init``; when it fails, rcl's own log line on stderr ("Failed to parse global
     arguments") is held back, so that the error it raises is the one line the user sees."""
@@ -136,7 +176,10 @@ def run(make_node: Callable[[], Node], name: str, args=None) -> int:
         # takes 0.01 ms instead of 9-14 ms, which would otherwise fall in the middle of a stream.
         gc.collect()
         gc.freeze()
-        rclpy.spin_until_future_complete(node, node.done)
+        spinner = executor()
+        spinner.add_node(node)
+        while node.context.ok() and not node.done.done():
+            spinner.spin_once(timeout_sec=SPIN_SECONDS)
     except (MotionStyleError, ParameterException, NameValidationException, RCLError,
             UnicodeDecodeError) as exc:
         (node.get_logger() if node else rclpy.logging.get_logger(name)).error(_one_line(exc))

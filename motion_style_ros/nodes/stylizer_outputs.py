@@ -16,7 +16,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.nodes import doubles, joint_state, prefixed
+from motion_style_ros.nodes import WithInfo, doubles, joint_state, prefixed
 from motion_style_ros.runtime.performer import PerformerStream
 from motion_style_ros.runtime.trajectory import Chunk
 
@@ -57,7 +57,7 @@ class Performer:
 
     def subscribe(self) -> None:
         self.subscription = self.node.create_subscription(
-            JointState, self.topic("joint_states"), lambda msg, info: self.node.on_state(self, msg, info),
+            JointState, self.topic("joint_states"), WithInfo(lambda msg, info: self.node.on_state(self, msg, info)),
             self.qos)
 
     def destroy(self, publishers: bool) -> None:
