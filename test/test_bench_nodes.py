@@ -22,6 +22,7 @@ def test_bench_nodes_measures_every_row(tmp_path, ros_env):
     assert result.returncode == 0, result.stdout + result.stderr
     lines = result.stdout.splitlines()
     assert "random-weight model" in result.stdout and "load average" in result.stdout
+    assert "the nodes spin in rclpy's events executor (MOTION_STYLE_EXECUTOR)" in result.stdout
     header = next(i for i, line in enumerate(lines) if line.split()[:3] == ["node", "rate", "(Hz)"])
     rows = [line.split() for line in lines[header + 1:header + 7]]
     assert [r[:3] for r in rows] == [["relay", "60", "1"], ["stylizer", "60", "1"], ["relay", "60", "2"],

@@ -392,6 +392,7 @@ def run_nodes(args) -> int:
 
     from motion_style_ros.cli.live import LiveGraph
     from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.nodes import EXECUTOR_VARIABLE, executor_choice
     from motion_style_ros.runtime.backends import backend, with_feature
     from motion_style_ros.runtime.onnx_model import read_card
 
@@ -425,7 +426,8 @@ def run_nodes(args) -> int:
                 ("stylizer+reference", max(rates), max(counts))]
     delays = {rate: 1000 * _output_delay(path, args, rate) for rate in rates}  # ms, the stylizer's
     logs = Path(tempfile.mkdtemp(prefix="motion_style_bench_"))
-    print(f"machine: {os.cpu_count()} cores, load average {_load()} (before); node logs in {logs}")
+    print(f"machine: {os.cpu_count()} cores, load average {_load()} (before); node logs in {logs}; the nodes "
+          f"spin in rclpy's {executor_choice()} executor ({EXECUTOR_VARIABLE})")
     print(f"each row: a node process (reliable QoS) <- synthetic walk frames from this process, "
           f"{NODE_WARMUP:g} s warm-up, {args.seconds:g} s measured; the relay republishes each "
           "frame as it came (what DDS and an rclpy node cost here), the stylizer stylizes it")

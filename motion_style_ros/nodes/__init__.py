@@ -101,21 +101,28 @@ EXECUTORS = ("events", "single_threaded")
 SPIN_SECONDS = 0.1  # a node checks whether it is done (or shut down) at least this often
 
 
-def executor() -> Executor:
-    """The executor a node spins in: rclpy's ``EventsExecutor`` where this rclpy has it (Kilted
-    on; it takes and dispatches in C++, which halves a relay node's CPU at 16-32 streams here: see
-    docs/models.md), else the ``SingleThreadedExecutor``; ``MOTION_STYLE_EXECUTOR=single_threaded``
+def executor_choice() -> str:
+    """Which executor the nodes spin in: ``events`` (rclpy's ``EventsExecutor``, where this rclpy
+    has it, Kilted on: it takes and dispatches in C++, which halves a relay node's CPU at 16-32
+    streams here, docs/models.md) or ``single_threaded``; ``MOTION_STYLE_EXECUTOR=single_threaded``
     picks the latter anyway."""
     choice = os.environ.get(EXECUTOR_VARIABLE, "events")
     if choice not in EXECUTORS:
         raise MotionStyleError(f"{EXECUTOR_VARIABLE} is {choice!r}; allowed: {', '.join(EXECUTORS)}")
     if choice == "events":
         try:
-            from rclpy.experimental import EventsExecutor
+            import rclpy.experimental  # noqa: F401
         except ImportError:  # rclpy before Kilted
-            pass
-        else:
-            return EventsExecutor()
+            return "single_threaded"
+    return choice
+
+
+def executor() -> Executor:
+    """A new executor of :func:`executor_choice`'s kind."""
+    if executor_choice() == "events":
+        from rclpy.experimental import EventsExecutor
+
+        return EventsExecutor()
     return SingleThreadedExecutor()
 
 
