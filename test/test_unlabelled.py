@@ -72,3 +72,12 @@ def test_a_step_restyles_the_unlabelled_windows_and_the_card_lists_them(datasets
     assert all(torch.isfinite(p).all() for p in with_u.model.parameters())
     assert card_record(with_u, data, 0.0, "", None)["clips"]["unlabelled"] == names
     assert "unlabelled" not in card_record(without, labelled, 0.0, "", None)["clips"]
+
+
+def test_a_model_trained_with_cmu_clips_acknowledges_cmu_in_its_card():
+    from motion_style_ros.training.export import CMU_ACKNOWLEDGEMENT, LICENCE, licence_fields
+
+    assert licence_fields({"config": {"unlabelled": []}}) == LICENCE
+    fields = licence_fields({"config": {"unlabelled": ["cmu:07", "/data/studio"]}})
+    assert fields["licence"] == LICENCE["licence"]
+    assert fields["attribution"].startswith(LICENCE["attribution"]) and CMU_ACKNOWLEDGEMENT in fields["attribution"]

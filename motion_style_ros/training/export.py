@@ -25,6 +25,9 @@ LICENCE = {
     "attribution": ('Kobayashi et al., "Motion Capture Dataset for Practical Use of AI-based Motion '
                     'Editing and Stylization", arXiv:2306.08861, 2023'),
 }
+# CMU's requested acknowledgement, for a model trained with CMU clips (``--unlabelled cmu:NN``)
+CMU_ACKNOWLEDGEMENT = ("CMU clips: the data used in this project was obtained from mocap.cs.cmu.edu; the "
+                       "database was created with funding from NSF EIA-0196217")
 
 
 def export_graph(module: nn.Module, example: tuple[torch.Tensor, ...], path: Path, contract: Contract,
@@ -67,9 +70,11 @@ def licence_fields(training: dict) -> dict:
     """The card's licence and attribution: the user's for a model of their own data (the
     ``licence`` of its training record, :func:`motion_style_ros.training.data.recipe`), else the
     Bandai data's."""
-    if "licence" not in training:
-        return LICENCE
-    return {"licence": training["licence"], "attribution": f"trained on {training['data']}"}
+    fields = (dict(LICENCE) if "licence" not in training
+              else {"licence": training["licence"], "attribution": f"trained on {training['data']}"})
+    if any(str(spec).startswith("cmu:") for spec in training.get("config", {}).get("unlabelled", [])):
+        fields["attribution"] += f"; {CMU_ACKNOWLEDGEMENT}"
+    return fields
 
 
 def data_fields(skeleton: str = "canonical") -> dict:
