@@ -262,14 +262,14 @@ def test_two_performers_in_one_node_are_independent(rig, recorded, model):
     assert difference(positions(rig.states["p2"]), [e for e, _, _ in offline(model, b)]) > 1e-4
 
 
-@pytest.mark.parametrize("executor", EXECUTORS)
+@pytest.mark.parametrize("choice", EXECUTORS)
 def test_a_pipelined_node_publishes_the_same_frames_one_frame_later(model, ros_env, recorded, tmp_path,
-                                                                    executor):
+                                                                    choice):
     """``pipelined:=true``: each frame is published before its own model frames run, so it shows
     what the default node shows one input frame earlier; in either executor (the single-threaded
     one is what rclpy before Kilted has)."""
-    proc = start_node("stylizer", {**ros_env, EXECUTOR_VARIABLE: executor}, log=tmp_path / "pipelined.log",
-                      remaps={"__node": f"stylizer_pipelined_{executor}"}, model=model, performers=["pipe"],
+    proc = start_node("stylizer", {**ros_env, EXECUTOR_VARIABLE: choice}, log=tmp_path / "pipelined.log",
+                      remaps={"__node": f"stylizer_pipelined_{choice}"}, model=model, performers=["pipe"],
                       input_fps=FPS, qos_reliability="reliable", qos_depth=1000, pipelined="true")
     listener = Listener("pipelined_test")
     try:
@@ -290,7 +290,7 @@ def test_a_pipelined_node_publishes_the_same_frames_one_frame_later(model, ros_e
         # the message info reached the node: its latency runs from each message's DDS receipt
         def latencies():
             return [float(kv.value) for a in diagnostics for st in a.status
-                    if st.name.startswith(f"stylizer_pipelined_{executor}:") for kv in st.values
+                    if st.name.startswith(f"stylizer_pipelined_{choice}:") for kv in st.values
                     if kv.key == "latency_p99_ms" and np.isfinite(float(kv.value))]
 
         listener.spin_until(latencies, "the node's latency in its diagnostics", procs=[proc])

@@ -111,7 +111,7 @@ def executor_choice() -> str:
         raise MotionStyleError(f"{EXECUTOR_VARIABLE} is {choice!r}; allowed: {', '.join(EXECUTORS)}")
     if choice == "events":
         try:
-            import rclpy.experimental  # noqa: F401
+            from rclpy.experimental import EventsExecutor  # noqa: F401
         except ImportError:  # rclpy before Kilted
             return "single_threaded"
     return choice
