@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.foot_lock import FootLock, OwnContact
+from motion_style_ros.core.foot_lock import REACH, FootLock, OwnContact
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.evaluation import metrics
 from motion_style_ros.io.datasets import ClipInfo, load_clip
@@ -20,13 +20,14 @@ def walk(datasets):
 
 def locked(motion: Motion, lock: FootLock, source: Motion | None = None) -> Motion:
     """``motion`` frame by frame through ``lock``, with contacts from ``source`` (default: itself);
-    a root the lock held back goes on from there, as a session's integrated trajectory does."""
+    a root the lock held back goes on from there, as a session's integrated trajectory does (its
+    ground point: the pelvis height is the stylizer's every frame)."""
     roots = motion.positions[:, motion.skeleton.pelvis]
     ankles = (source or motion).global_positions()[:, lock.ankles]
     moved, out_q, out_p = np.zeros(3), [], []
     for t in range(motion.n_frames):
         q, p = lock(motion.rotations[t:t + 1], roots[t:t + 1] + moved, ankles[t:t + 1])
-        moved = p[0] - roots[t]
+        moved = (p[0] - roots[t]) * [1.0, 0.0, 1.0]
         out_q.append(q)
         out_p.append(p)
     return Motion.from_rotations(motion.skeleton, np.concatenate(out_q), np.concatenate(out_p), motion.fps)
@@ -50,8 +51,8 @@ def test_locking_cuts_foot_skating_and_leaves_the_rest_alone(walk):
                                              "UpperLeg_R", "LowerLeg_R", "Foot_R")]
     others = [j for j in range(walk.skeleton.n_joints) if j not in legs]
     assert np.array_equal(fixed.rotations[:, others], slid.rotations[:, others])
-    pelvis = walk.skeleton.pelvis
-    assert np.array_equal(fixed.positions[:, pelvis, 1], slid.positions[:, pelvis, 1])
+    pelvis = walk.skeleton.pelvis  # its height within REACH of the stylizer's
+    assert np.abs(fixed.positions[:, pelvis, 1] - slid.positions[:, pelvis, 1]).max() <= REACH + 1e-12
     assert metrics.bone_length_error(fixed, walk.skeleton) < 1e-9
     # No pops: a locked leg turns about as fast as the input's legs do at most.
     def largest_step(m):
@@ -83,7 +84,7 @@ def test_a_stream_with_no_input_holds_its_own_planted_feet(walk):
     moved, out_q, out_p = np.zeros(3), [], []
     for t in range(slid.n_frames):
         q, p = lock(slid.rotations[t:t + 1], roots[t:t + 1] + moved)  # no input ankles
-        moved = p[0] - roots[t]
+        moved = (p[0] - roots[t]) * [1.0, 0.0, 1.0]
         out_q.append(q)
         out_p.append(p)
     fixed = Motion.from_rotations(sk, np.concatenate(out_q), np.concatenate(out_p), walk.fps)
@@ -192,3 +193,35 @@ def test_an_anchored_root_covers_the_ground_its_legs_cover(walk):
     assert travelled["anchored"] < 0.5 * (travelled["walk"] + travelled["slid"])  # nearer the walk's
     assert metrics.bone_length_error(anchored, walk.skeleton) < 1e-9
 
+
+
+def test_the_pelvis_not_the_knees_takes_up_a_floor_that_is_off(walk, monkeypatch):
+    """The input's floor 4 cm above the stylizer's (another rig's ankles): the body rises and the
+    legs keep the stylizer's extension; bending the knees instead is the crouch."""
+    from motion_style_ros.core import foot_lock
+    from motion_style_ros.evaluation.posture import leg_angles
+
+    roots = walk.positions[:, walk.skeleton.pelvis] + np.array([0.0, 0.04, 0.0])
+    higher = Motion.from_rotations(walk.skeleton, walk.rotations, roots, walk.fps)
+    own = leg_angles(walk)["knee"]
+    fixed = locked(walk, FootLock(1, walk.fps), source=higher)
+    bent = (leg_angles(fixed)["knee"] - own).mean()
+    rose = fixed.positions[:, walk.skeleton.pelvis, 1] - walk.positions[:, walk.skeleton.pelvis, 1]
+    assert 0.005 < rose.mean() and rose.max() <= REACH
+    monkeypatch.setattr(foot_lock, "REACH", 0.0)  # the pelvis held: the knees bend instead
+    crouched = locked(walk, FootLock(1, walk.fps), source=higher)
+    assert bent < 3.0 and bent < 0.6 * (leg_angles(crouched)["knee"] - own).mean()
+
+
+def test_strength_turns_the_correction_only_that_far(walk):
+    slid = sliding(walk)
+    roots, ankles = slid.positions[:, slid.skeleton.pelvis], walk.global_positions()[:, FootLock(1, 30.0).ankles]
+    full, none, half = (FootLock(1, walk.fps) for _ in range(3))
+    for t in range(60):
+        args = slid.rotations[t:t + 1], roots[t:t + 1], ankles[t:t + 1]
+        q1, p1 = full(*args)
+        q0, p0 = none(*args, strength=np.zeros(1))
+        qh, ph = half(*args, strength=np.full(1, 0.5))
+        assert np.array_equal(q0, slid.rotations[t:t + 1]) and np.array_equal(p0, roots[t:t + 1])
+        assert np.allclose(ph, 0.5 * (p0 + p1))
+        assert np.allclose(rot.angle_between(qh, q0), rot.angle_between(qh, q1), atol=1e-9)

@@ -107,7 +107,7 @@ def run(args: argparse.Namespace, backend: str) -> int:
                 row = {"clip": path.name, "style": style, "frames_in": source.n_frames,
                        "frames_received": len(inputs), "frames_out": len(frames)}
                 # Frames the stream lost are left out; the rest are compared index for index (the
-                # windowed offline output is aligned with its input, the live one trails it).
+                # offline output is aligned with its input, the live one trails it).
                 start = delay + int(round(live.SETTLE_SECONDS * source.fps))
                 kept = [(k, v) for k, v in frames if k >= start and k - delay < reference.n_frames]
                 if kept and len(inputs) == source.n_frames:
@@ -145,9 +145,6 @@ def run(args: argparse.Namespace, backend: str) -> int:
 def _delay(backend: str, fps: float) -> int:
     """Input frames by which the node's output trails the offline output of the same clip."""
     from motion_style_ros.runtime.backends import backend as spec
-
-    if not spec(backend).lookahead:
-        return 0  # both go through step() with the same latency
     from motion_style_ros.runtime.offline import default_model
 
     session = spec(backend).session_class()(default_model(backend), input_fps=fps)

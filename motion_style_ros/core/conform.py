@@ -317,26 +317,33 @@ class StreamGround:
     with a foot on the floor); then it follows the height of the lower of the ankles that stand
     still (slower than ``speed`` m/s): down within ``down_seconds``, up only over ``up_seconds``
     (a still ankle may be rolling up onto the toes; the floor is the low envelope, as the offline
-    percentile takes it).
+    percentile takes it). For the first ``settle_seconds`` it goes up within ``down_seconds`` too:
+    a stream's first frame may be a calibration pose off its floor (a CMU file's T-pose stands 5 cm
+    lower than its walk), and a floor taken from it made every stylized step a crouch for seconds.
     """
 
     def __init__(self, performers: int, fps: float, ankle_height: float, down_seconds: float = 0.2,
-                 up_seconds: float = 3.0, speed: float = 0.25) -> None:
+                 up_seconds: float = 3.0, speed: float = 0.25, settle_seconds: float = 1.0) -> None:
         self.ankle_height = float(ankle_height)
         self.speed = speed
         self._fps = float(fps)
         self._down, self._up = (1.0 - np.exp(-1.0 / (self._fps * s)) for s in (down_seconds, up_seconds))
+        self._settle = settle_seconds * self._fps  # frames
+        self._frames = np.zeros(performers)  # since each performer's start
         self._last = np.full((performers, 2, 3), np.nan)
         self.offset = np.zeros(performers)
 
     def start(self, ankles: np.ndarray, which: np.ndarray) -> None:
         """These performers start afresh with this frame's ankle world positions ``(P, 2, 3)``."""
+        self._frames[which] = 0.0
         self.offset[which] = ankles[which, :, 1].min(axis=-1) - self.ankle_height
         self._last[which] = np.nan
 
     def update(self, ankles: np.ndarray) -> np.ndarray:
         """Follow one frame's ankle world positions ``(P, 2, 3)`` (the stream's own, not moved);
         returns the offsets ``(P,)``."""
+        up = np.where(self._frames < self._settle, self._down, self._up)
+        self._frames += 1.0
         kernels.follow_ground(kernels.rows(ankles), self._last, self.offset, self._fps,
-                              float(self.speed), self.ankle_height, self._down, self._up)
+                              float(self.speed), self.ankle_height, self._down, up)
         return self.offset

@@ -25,7 +25,27 @@ dragged the planted feet at 1.3 m/s.
 With ``clearance`` (the default), a foot the input lifts is also lifted in the output: the output's
 ankle is never lower than the input's, so a stylized foot cannot skim the floor while the
 performer's is in the air. On recordings the stylizers never saw (CMU walks), outputs otherwise
-brought their feet down early and slid them in at walking speed.
+brought their feet down early and slid them in at walking speed. A foot reaching forward (its ankle
+``SWING_REACH`` or more in front of its hip) is lifted by swinging the leg up about the hip at the
+length it has: a nearly straight leg lifted at the knee bends far for a few centimetres (the swing
+knees of CMU walks bent 19 degrees more than the stylizer's). A foot behind its hip is lifted at
+the knee (swung up, its toes would drag), and one in between part of each way. A lock starts under where the output's ankle was on the frame before, so a
+lifted foot comes down where it was rather than jumping to the stylizer's.
+
+The legs keep the extension the stylizer gave them, and so the performer's height: the pelvis,
+not the knees, takes up the difference between where the held feet are and where the stylizer's
+legs reach. Each frame the pelvis is moved vertically to where the legs, at the stylizer's
+hip-to-ankle distances, reach their goals: the held legs and the free legs that clearance lifts
+(their mean, weighted by each hold's weight and by how far clearance lifts, and no higher than a
+planted leg reaches), eased in over a few frames and at most ``REACH`` from the stylizer's pelvis;
+the two-bone IK then does only what is left (in a walk, the swing knee still bends to clear the
+floor, because the planted leg caps the pelvis). Bending the knees instead made
+every walker of another rig crouch (15-20 degrees more knee flexion on CMU walks): an input floor
+or proportions a little off the training data's put the held ankles closer to the hips than the
+stylizer's legs reached.
+
+``strength`` (per performer, in [0, 1]) turns the corrected legs and root only that far from the
+frame as it came: 0 leaves the frame untouched (a stream at alpha 0 is the input itself).
 """
 
 from __future__ import annotations
@@ -34,6 +54,7 @@ import numpy as np
 
 from motion_style_ros.core import kernels
 from motion_style_ros.core.features import CONTACT_HEIGHT, Mask
+from motion_style_ros.core.intensity import toward
 from motion_style_ros.core.motion import forward_kinematics, kinematic_arrays, rest_positions
 from motion_style_ros.core.skeleton import Skeleton, canonical
 
@@ -45,6 +66,10 @@ _NEAR = 1e-6  # m: a goal this close to the ankle leaves the leg as it is
 ANCHOR_EASE = 0.3  # the fraction of the way to the wanted hold-back the root goes each frame
 DOWN = 0.08  # m: a stylized ankle this far above the contact height is still down (on its toes)
 PLANTED_SPEED = 0.3  # m/s: an ankle below its contact height and slower than this is planted
+REACH = 0.1  # m: the most the pelvis is moved from the stylizer's to keep the legs' extension
+RISE_EASE = 0.5  # the fraction of the way to the wanted pelvis height it goes each frame
+SWING_REACH = 0.15  # m: an ankle this far in front of its hip is lifted wholly by swinging the leg
+LIFT_RAMP = 0.02  # m: a free foot lifted this far by clearance counts fully for the pelvis height
 
 
 class FootLock:
@@ -84,6 +109,9 @@ class FootLock:
         self._weight = np.zeros((performers, 2))  # 1 locked, fading to 0 after contact
         self._locked = np.zeros((performers, 2), dtype=bool)
         self._axis = np.zeros((performers, 2, 3))  # last good knee axis, for a straight leg
+        self._rise = np.zeros(performers)  # how far the pelvis is moved up this frame (m)
+        self._placed = np.full((performers, 2, 3), np.nan)  # where the output's ankles went last frame
+        self._legs = np.concatenate([self._hip, self._knee, self._ankle])
         self._own = OwnContact(performers, self.fps, speed)  # contacts of a stream with no input
 
     def reset(self, which: Mask = None) -> None:
@@ -93,6 +121,8 @@ class FootLock:
         self._last_out[which] = np.nan
         self._last_root[which] = np.nan
         self._back[which] = 0.0
+        self._rise[which] = 0.0
+        self._placed[which] = np.nan
         self._weight[which] = 0.0
         self._locked[which] = False
         self._own.reset(which)
@@ -103,12 +133,14 @@ class FootLock:
         return self._ankle
 
     def __call__(self, rotations: np.ndarray, root_positions: np.ndarray,
-                 input_ankles: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 input_ankles: np.ndarray | None = None, strength: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """The output frame with the legs of planted feet locked: local rotations ``(P, J, 4)``
         and root positions ``(P, 3)`` (new arrays; the root moves only by ``anchor_root``);
         ``input_ankles`` ``(P, 2, 3)``: world positions of the input's ankles (:attr:`ankles`) in
         the frame the output was made from; None for a stream with no input (a generated one),
-        whose own low, slow ankles are taken as planted (:class:`OwnContact`). The arithmetic is
+        whose own low, slow ankles are taken as planted (:class:`OwnContact`); ``strength``
+        ``(P,)``: see the module docstring (default: full). The arithmetic is
         :func:`motion_style_ros.core.kernels.lock_feet`."""
         sk = self.skeleton
         rotations = kernels.rows(rotations)
@@ -116,13 +148,19 @@ class FootLock:
         if input_ankles is None:
             _, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, roots), joints=[])
             input_ankles = self._own(g_pos[:, self._ankle])
-        return kernels.lock_feet(
+        out, root = kernels.lock_feet(
             *kinematic_arrays(sk), sk.pelvis, self._hip, self._knee, self._ankle, self._toes,
             self._height, rotations, roots, kernels.rows(input_ankles),
             self._last, self._last_out, self._last_root, self._back, self._target, self._landed,
             self._offset, self._heading, self._turn, self._glide, self._weight, self._locked, self._axis,
-            self.fps, float(self.speed), float(self.max_stretch), self._fade, bool(self.clearance),
-            bool(self.anchor_root), float(self.anchor_stretch), GLIDE, _NEAR, DOWN, ANCHOR_EASE, _EPS)
+            self._rise, self._placed, self.fps, float(self.speed), float(self.max_stretch), self._fade, bool(self.clearance),
+            bool(self.anchor_root), float(self.anchor_stretch), GLIDE, _NEAR, DOWN, ANCHOR_EASE, REACH,
+            RISE_EASE, LIFT_RAMP, SWING_REACH, _EPS)
+        if strength is None or (strength >= 1.0).all():
+            return out, root
+        legs = self._legs
+        out[:, legs] = toward(rotations[:, legs], out[:, legs], strength[:, None])
+        return out, np.where(strength[:, None] >= 1.0, root, roots + strength[:, None] * (root - roots))
 
 
 class OwnContact:

@@ -144,6 +144,12 @@ class StreamScale:
             self._measured, self._cross, self._square, self.target, self.scale, self.fps, self.reference,
             PRIOR_WEIGHT, low, high, MIN_LEG_SPEED, STANCE_RESIDUAL, RESTART_EVIDENCE, RESTART_OFF, self._gain)
 
+    def placed(self, root: np.ndarray) -> np.ndarray:
+        """Stream roots ``(P, 3)`` of an earlier frame in canonical proportions, about the latest
+        frame's (:meth:`to_stream` gives them back); nothing changes."""
+        out = self._canonical + (root - self._stream) / self.scale[:, None]
+        return np.where(np.isnan(self._stream[:, :1]), root, out)
+
     def to_stream(self, positions: np.ndarray) -> np.ndarray:
         """Stylized root positions ``(P, 3)`` (canonical proportions) in the stream's world."""
         out = self._stream + self.scale[:, None] * (positions - self._canonical)

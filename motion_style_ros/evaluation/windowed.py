@@ -27,18 +27,17 @@ DIVERSITY_STYLES = ["elderly", "youthful", "exhausted"]  # styles the seeds' div
 def window_times(backend: str, model: str | Path | None = None, performers: int = 1, repeats: int = 200,
                  threads: int = 1) -> np.ndarray:
     """Wall time (ms) of each of ``repeats`` runs of a windowed backend's step on one window of
-    ``performers`` (its model calls on the history, at the first style and alpha 1)."""
+    ``performers`` (its model calls on the history, at the first style)."""
     spec = backends.backend(backend)
     session = spec.session_class()(model or spec.default_model, performers=performers, threads=threads)
     step = session.windows
     style = np.zeros((performers, len(session.styles)))
     style[:, 0] = 1.0
-    alpha = np.ones((performers, 1))
-    step.run_window(style, alpha)  # warm-up
+    step.run_window(style)  # warm-up
     times = []
     for _ in range(repeats):
         start = time.perf_counter_ns()
-        step.run_window(style, alpha)
+        step.run_window(style)
         times.append((time.perf_counter_ns() - start) / 1e6)
     return np.array(times)
 

@@ -1,9 +1,11 @@
 """What a stylizer session is asked to do, per performer: target style, an optional second style
-with a mix weight, and alpha (how much of the style residual to apply).
+with a mix weight, alpha (the style's intensity) and the part alphas that scale it per body part
+(:mod:`motion_style_ros.core.intensity`).
 
-A change never lands at once: the model's ``style`` and ``alpha`` inputs move from where they are to
-the new target along a smoothstep over ``blend_seconds`` of stream time. Every style branch of the
-model runs at every step, so re-weighting them is continuous and the blend makes it gradual.
+A change never lands at once: the model's ``style`` input and each part's intensity move from where
+they are to the new target along a smoothstep over ``blend_seconds`` of stream time. Every style
+branch of the model runs at every step, so re-weighting them is continuous and the blend makes it
+gradual.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from motion_style_ros.core.easing import smoothstep
+from motion_style_ros.core.intensity import PARTS, check_part_alpha
 from motion_style_ros.errors import MotionStyleError
 
 
@@ -27,7 +30,8 @@ def unit_interval(value: float, what: str) -> float:
 class Controls:
     """Targets and blends of ``performers`` performers over the model's ``styles``.
 
-    Each performer's model inputs are one vector: style weights (S) then alpha (1). A blend runs
+    Each performer's controls are one vector: style weights (S) then each part's intensity, alpha
+    times the part's alpha (one per :data:`~motion_style_ros.core.intensity.PARTS`). A blend runs
     from the vector in use when the change came (even mid-blend) to the new target.
     """
 
@@ -41,6 +45,7 @@ class Controls:
         self._secondary = np.zeros(performers, dtype=int)
         self._mix = np.zeros(performers)
         self._alpha = np.ones(performers)
+        self._parts = np.ones((performers, len(PARTS)))
         self._from = self._target()
         self._progress = np.ones(performers)  # 1: blend done
         self._settled: tuple[np.ndarray, np.ndarray] | None = None  # the inputs once every blend is done
@@ -73,6 +78,13 @@ class Controls:
         self._begin(which)
         self._alpha[which] = a
 
+    def set_part_alpha(self, values, performer: int | None = None) -> None:
+        """Scale alpha per body part: one number in [0, 1] for each of
+        :data:`~motion_style_ros.core.intensity.PARTS`."""
+        parts, which = check_part_alpha(values), self.which(performer)
+        self._begin(which)
+        self._parts[which] = parts
+
     def set_mix(self, style: str | None, weight: float, performer: int | None = None) -> None:
         """Blend a second style in with ``weight`` (0: the target style alone, 1: the second style
         alone); ``style=None`` removes the second style."""
@@ -89,15 +101,16 @@ class Controls:
         self._settled = None
 
     def advance(self, seconds: float) -> tuple[np.ndarray, np.ndarray]:
-        """Move the blends on by ``seconds`` of stream time; the model's ``style`` ``(P, S)`` and
-        ``alpha`` ``(P, 1)`` float32 inputs for this step (read-only: between changes, every step
-        gets the same arrays)."""
+        """Move the blends on by ``seconds`` of stream time; the model's ``style`` ``(P, S)``
+        float32 input and each part's intensity ``(P, len(PARTS))`` for this step (read-only:
+        between changes, every step gets the same arrays)."""
         if self._settled is not None:
             return self._settled
         step = np.inf if self.blend_seconds == 0 else seconds / self.blend_seconds
         self._progress = np.minimum(self._progress + step, 1.0)
         now = self._current()
-        inputs = now[:, :-1].astype(np.float32), now[:, -1:].astype(np.float32)
+        styles = len(self.styles)
+        inputs = now[:, :styles].astype(np.float32), now[:, styles:].copy()
         if (self._progress >= 1.0).all():
             for a in inputs:
                 a.flags.writeable = False
@@ -114,7 +127,7 @@ class Controls:
         eye = np.eye(len(self.styles))
         mix = self._mix[:, None]
         weights = (1.0 - mix) * eye[self._primary] + mix * eye[self._secondary]
-        return np.concatenate([weights, self._alpha[:, None]], axis=1)
+        return np.concatenate([weights, self._alpha[:, None] * self._parts], axis=1)
 
     def _current(self) -> np.ndarray:
         return self._from + smoothstep(self._progress)[:, None] * (self._target() - self._from)

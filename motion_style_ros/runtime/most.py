@@ -16,9 +16,9 @@ session) around a :class:`MostStep`, the step graph of the contract :data:`~moti
   averaged, and replaces one style's (the one named, or the nearest mean's). A window's step then
   runs the content encoder, the modulator and the generator only. The features a window gets are
   the styles' mixed by the style weights (style and mix); feature changes blend over
-  ``blend_seconds`` like style and alpha.
-- **Alpha.** Inside the graph, the style vector moves from the window's own (the window restyled
-  like itself: its reconstruction) to the target's by alpha.
+  ``blend_seconds`` like style.
+- **Alpha.** The graph's own alpha input (the style vector moved from the window's own towards the
+  target's) is held at 1: the stream session applies the intensity to the output frames.
 - **Style bank.** Styles enrolled from a user's clips (:mod:`~motion_style_ros.runtime.style_bank`:
   the clips' own style features, averaged) come after the card's in ``styles``, each with its
   features in place of a mean.
@@ -73,12 +73,13 @@ class MostStep(OverlapWindows):
     def start(self, performers: int, blend_seconds: float) -> None:
         # [:, :, 0] the style features, [:, :, 1] the mean content ones
         self._start_codes(performers, blend_seconds, self.means)
+        self._full = np.ones((performers, 1), dtype=np.float32)
 
-    def run_window(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    def run_window(self, style: np.ndarray) -> np.ndarray:
         target = np.einsum("ps,pskcd->pkcd", style.astype(np.float64), self.current_codes())
         return self.model.run(features=self._history, style=target[:, 0].astype(np.float32),
                               pooled=target[:, 1].astype(np.float32),
-                              alpha=np.asarray(alpha, dtype=np.float32).reshape(-1, 1))["output"]
+                              alpha=self._full)["output"]
 
 
 def _read_means(path: Path, styles: int, shape: tuple[int, int]) -> np.ndarray:

@@ -5,10 +5,8 @@ restyling through the shared stream session, and a sampler of endless new motion
   overlap-add around another model: each window is encoded to its content code and decoded with the
   target's style input. Each performer has a style input per style (the card's ``style_inputs``:
   one-hot for Model1, the style's mean style code for Model2), mixed by the controls' style weights
-  and blended over ``blend_seconds`` like the ST-GCN codes. Alpha moves Model2's style input from
-  the window's own style code (its style encoder) to the target's, and Model1's output from the
-  input's frames to the restyled ones: alpha 0 gives the input back (Model1) or its reconstruction
-  (Model2). The plain SAAE has no style input, so it cannot restyle: a session refuses it.
+  and blended over ``blend_seconds`` like the ST-GCN codes (the stream session applies alpha to the
+  output frames). The plain SAAE has no style input, so it cannot restyle: a session refuses it.
 - :class:`SaaeSession` is the windowed stream session
   (:class:`~motion_style_ros.runtime.windowed.BanklessSession`) with Model2's reference clips: a
   clip's style code (the mean over its windows) replaces a style's input
@@ -99,24 +97,13 @@ class SaaeStep(OverlapWindows):
     def start(self, performers: int, blend_seconds: float) -> None:
         self._start_codes(performers, blend_seconds, self._inputs)
 
-    def _code(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-        """``(P, style_width)`` float32 style inputs for the window in ``_history``."""
-        target = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes())
-        if self.variant == "model1" or (alpha >= 1.0).all():
-            return target.astype(np.float32)
-        own = self.style_encoder.run(features=self._history)["style_code"]
-        return (own + alpha * (target - own)).astype(np.float32)
-
-    def run_window(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-        """The window encoded to its content code and decoded with the style input; Model1's
-        alpha blends the output from the input's frames."""
-        code, features = self._code(style, alpha), self._history
+    def run_window(self, style: np.ndarray) -> np.ndarray:
+        """The window encoded to its content code and decoded with the style input."""
+        code = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes()).astype(np.float32)
+        features = self._history
         content = self.encoder.run(features=features)["content"]
         out = self.decoder.run(content=content, style=code,
                                position=_positions(features.shape[1], self.trained_window, len(features)))["output"]
-        if self.variant == "model1" and (alpha < 1.0).any():
-            source = features[..., : out.shape[-1]]
-            out = source + alpha[:, :, None].astype(np.float32) * (out - source)
         return out
 
 

@@ -4,7 +4,7 @@ A :class:`RecurrentSession` is a :class:`~motion_style_ros.runtime.stream.Stream
 pipelining, gaps, trajectory, foot locking, conditioning, controls, bad input: see there) around a
 :class:`RecurrentStep`: the recurrent ONNX stylizer of the contract
 :data:`~motion_style_ros.runtime.contract.RECURRENT` (raw ``encode()`` features, style weights,
-alpha, the LSTM state and a reset flag in; the stylized ``[root | rot6d]`` blocks and the next
+alpha (always 1: the stream session applies the intensity), the LSTM state and a reset flag in; the stylized ``[root | rot6d]`` blocks and the next
 state out), one call per model frame for all performers, its output frame that of its input frame.
 The state starts from the model's learned initial state on a performer's first frame, after a
 reset or gap, and once the stream's conditioning has been measured.
@@ -27,7 +27,6 @@ class RecurrentStep:
     """The recurrent stylizer at ``path`` (its card ``card``) as a model step: no delay."""
 
     delay_frames = 0
-    aligned = False
 
     def __init__(self, path: Path, card: dict, threads: int) -> None:
         check_card(card, path, "recurrent")
@@ -38,12 +37,13 @@ class RecurrentStep:
 
     def start(self, performers: int, blend_seconds: float) -> None:
         self._state = np.zeros((performers, self._state_size), dtype=np.float32)
+        self._full = np.ones((performers, 1), dtype=np.float32)
 
     def restart(self) -> None:
         """Nothing to forget: the reset input restarts the state on a performer's fresh frame."""
 
-    def __call__(self, frame: ModelFrame, style: np.ndarray, alpha: np.ndarray) -> Stylized:
-        out = self.model.run(features=frame.features, style=style, alpha=alpha, state=self._state,
+    def __call__(self, frame: ModelFrame, style: np.ndarray) -> Stylized:
+        out = self.model.run(features=frame.features, style=style, alpha=self._full, state=self._state,
                              reset=frame.restate[:, None].astype(np.float32))
         self._state = out["state_out"]
         return Stylized(out["output"], frame.features, frame.ankles, frame.lift)

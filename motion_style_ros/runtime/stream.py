@@ -42,8 +42,16 @@ names them) that turns each model frame's conditioned features into stylized fea
   input's floor. With ``conform``, the arm rolls and the performer's size are measured from the
   stream's first seconds (:meth:`~StreamSession.calibration`) and the frames turned and scaled to
   the training data's conventions on the way in and back on the way out.
-- **Controls.** Style, alpha and a second style with a mix weight change between any two
-  frames and blend over ``blend_seconds`` (:mod:`motion_style_ros.runtime.controls`).
+- **Controls.** Style, alpha, part alphas and a second style with a mix weight change between
+  any two frames and blend over ``blend_seconds`` (:mod:`motion_style_ros.runtime.controls`).
+- **Intensity.** The model always gives the full style. Each model frame's decoded output is then
+  turned from the input frame it was made from towards the stylized one by each joint's intensity
+  (alpha times its part's alpha; :mod:`motion_style_ros.core.intensity`), in the conditioned
+  frames, and the feet are locked after that blend, so they stay planted at every alpha; the lock
+  comes in over the first ``LOCK_RAMP`` of the legs' intensity, so alpha 0 locks nothing. Between
+  model frames (input faster than the model), an output whose intensity is below 1 also gets that
+  share of what the model frames' interpolation misses of the input: alpha 0 gives every input
+  frame back as it came (to float precision), ``latency`` later.
 - **Bad input.** A frame with the wrong shape or dtype, NaN/Inf or non-unit quaternions raises
   :class:`MotionStyleError` before anything changes: the next good frame continues as if the
   bad one never came. Quaternions within 10 % of unit length are normalised.
@@ -62,6 +70,7 @@ from motion_style_ros.core import kernels, rotations as rot
 from motion_style_ros.core.conform import ANKLES, ROLL_MIN_FRAMES, StreamGround, StreamRolls, conform_rolls
 from motion_style_ros.core.features import UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
+from motion_style_ros.core.intensity import PARTS, blend, part_of_joints, toward
 from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
 from motion_style_ros.core.proportions import CONTACTS, StreamScale, clip_scale
 from motion_style_ros.core.resample import Hermite, resample
@@ -73,6 +82,8 @@ from motion_style_ros.runtime.controls import Controls
 
 QUATERNION_TOLERANCE = 0.1  # |norm - 1| above this is rejected, below it normalised
 STAMP_TOLERANCE = 1e-6  # s: a model frame this close to an input frame takes that frame as it is
+LOCK_RAMP = 0.25  # the legs' intensity at which foot locking is full (it grows from 0 at 0)
+_LEGS = PARTS.index("legs")
 
 
 @dataclass(frozen=True)
@@ -101,7 +112,6 @@ class ModelStep(Protocol):
     """A backend's model inside a :class:`StreamSession`: one call per model frame."""
 
     delay_frames: int  # model frames by which its output frame lags its input frame
-    aligned: bool  # run() takes the stream's latency off the output (whole model frames of delay)
     styles: list[str]  # the card's styles and any of its own (a style bank's), as controls see them
 
     def start(self, performers: int, blend_seconds: float) -> None:
@@ -110,9 +120,9 @@ class ModelStep(Protocol):
     def restart(self) -> None:
         """Forget the stream (a start or a gap)."""
 
-    def __call__(self, frame: ModelFrame, style: np.ndarray, alpha: np.ndarray) -> Stylized:
-        """The stylized frame for this model frame, with the controls' style weights ``(P, S)``
-        and alphas ``(P, 1)``."""
+    def __call__(self, frame: ModelFrame, style: np.ndarray) -> Stylized:
+        """The stylized frame for this model frame (the full style: the session applies alpha),
+        with the controls' style weights ``(P, S)``."""
 
 
 class StreamSession:
@@ -161,6 +171,12 @@ class StreamSession:
         self._scale = StreamScale(self.performers, self.fps, stats["scale_reference"]) if conform else None
         self._contacts = [self.skeleton.index(n) for n in CONTACTS]
         self._ankle_joints = [self.skeleton.index(n) for n in ANKLES]  # what grounding and foot locks read
+        self._part = part_of_joints(self.skeleton)  # each joint's part: its column of the intensities
+        # the raw input frames of the last delay_frames + 1 model frames (oldest first): what each
+        # output frame is blended with
+        depth = step.delay_frames + 1
+        self._ring_q = np.zeros((self.performers, depth, self.skeleton.n_joints, 4))
+        self._ring_p = np.zeros((self.performers, depth, 3))
         self._fresh = np.ones(self.performers, dtype=bool)
         self._remeasured = np.zeros(self.performers, dtype=bool)  # see StreamRolls.observe
         step.start(self.performers, self.controls.blend_seconds)
@@ -177,9 +193,15 @@ class StreamSession:
         self.controls.set_style(style, performer)
 
     def set_alpha(self, alpha: float, performer: int | None = None) -> None:
-        """Strength of the style in [0, 1]; 0 is the model's neutral branch alone."""
+        """Intensity of the style in [0, 1]: 0 gives the input back, 1 the full style."""
         self.catch_up()
         self.controls.set_alpha(alpha, performer)
+
+    def set_part_alpha(self, values, performer: int | None = None) -> None:
+        """Scale alpha per body part: one number in [0, 1] for each of
+        :data:`~motion_style_ros.core.intensity.PARTS` (torso, arms, legs)."""
+        self.catch_up()
+        self.controls.set_part_alpha(values, performer)
 
     def set_mix(self, style: str | None, weight: float, performer: int | None = None) -> None:
         """Mix a second style in with ``weight`` in [0, 1]; ``None`` removes it."""
@@ -247,6 +269,7 @@ class StreamSession:
             # comes phase_seconds later than it would.
             self._origin = stamp + (self._phase - 1.0 / self.fps if self._phase else 0.0)
             self.reset()
+        self._frames = [*self._frames[-self._keep:], (stamp, q, p)]
         if self.pipelined and self._outputs:  # a stream's first frame has no model frame yet
             self._pending = stamp, q, p
         else:
@@ -264,9 +287,9 @@ class StreamSession:
             ) -> Motion:
         """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``), the
         stream conditioned (arm rolls, size) from the whole clip at once, or from ``calibration``.
-        For a step whose output is ``aligned``, the stream is run on past the clip's end (its last
-        frame held) for the latency, and the first outputs, which belong before the clip, are
-        dropped."""
+        The stream is run on past the clip's end (its last frame held) for the latency, and the
+        first outputs, which belong before the clip, are dropped: output frame k is input frame
+        k's (alpha 0 gives the clip back)."""
         if self.performers != 1:
             raise MotionStyleError(
                 f"run() stylizes one clip; this session has {self.performers} performers"
@@ -286,7 +309,7 @@ class StreamSession:
             whole = motion if calibration is None else calibration
             self._rolls.calibrate(0, whole)
             self._scale.calibrate(0, clip_scale(resample(whole, self.fps), self._scale.reference))
-        delay = round(self.latency * self.input_fps) if self.model_step.aligned else 0
+        delay = round(self.latency * self.input_fps)
         held = np.arange(motion.n_frames + delay).clip(max=motion.n_frames - 1)
         roots = motion.positions[:, self.skeleton.pelvis]
         frames = [self.step(motion.rotations[t : t + 1], roots[t : t + 1], k / motion.fps)
@@ -304,6 +327,13 @@ class StreamSession:
         self._input: tuple[np.ndarray, np.ndarray] | None = None
         self._outputs: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last three model frames
         self._segment: Hermite | None = None  # the curve between the last two, made when first needed
+        # the raw input frames the last three model frames were made from, their curve, the
+        # input frames that came in over the latency, and the intensities of the last model frame
+        self._inputs: list[tuple[float, np.ndarray, np.ndarray]] = []
+        self._input_segment: Hermite | None = None
+        self._frames: list[tuple[float, np.ndarray, np.ndarray]] = []
+        self._keep = int(np.ceil(self.latency * self.input_fps)) + 2
+        self._intensity = np.ones((self.performers, len(PARTS)))
         self.model_step.restart()
 
     # --- internals ----------------------------------------------------------------------------
@@ -332,19 +362,41 @@ class StreamSession:
             if self._foot_lock is not None:
                 self._foot_lock.reset(fresh)
                 self._standing.reset(fresh)
-        style, alpha = self.controls.advance(1.0 / self.fps)
+        style, self._intensity = self.controls.advance(1.0 / self.fps)
         # A performer whose rig has just been measured (StreamRolls.observe) starts from the model's
         # initial state: nothing it remembers comes from its unconformed first frames. Its
         # trajectory goes on as it was.
         restate = fresh | self._remeasured
         self._remeasured = np.zeros(self.performers, dtype=bool)
         self._fresh[:] = False
+        self._remember(q, p, fresh)
         out = self.model_step(
-            ModelFrame(features, self._encoder.positions[:, self._ankle_joints], lift, fresh, restate),
-            style, alpha)
+            ModelFrame(features, self._encoder.positions[:, self._ankle_joints], lift, fresh, restate), style)
         blocks = out.blocks if self._standing is None else self._standing(out.blocks, out.features)
-        frame = self._placed(self._decoder(blocks), out.ankles)
+        frame = self._blended(self._decoder(blocks), out.lift)
+        frame = self._placed(frame, out.ankles)
         self._emit(t - self.model_step.delay_frames / self.fps, frame[0], frame[1] + out.lift)
+
+    def _remember(self, q: np.ndarray, p: np.ndarray, fresh: np.ndarray) -> None:
+        """Keep a model frame's raw input for the output frame made from it (a fresh performer's
+        earlier slots hold it too, as a windowed step shows its first frame until it has more)."""
+        self._ring_q[:, :-1] = self._ring_q[:, 1:]
+        self._ring_p[:, :-1] = self._ring_p[:, 1:]
+        self._ring_q[:, -1], self._ring_p[:, -1] = q, p
+        if fresh.any():
+            self._ring_q[fresh] = q[fresh, None]
+            self._ring_p[fresh] = p[fresh, None]
+
+    def _blended(self, styled: tuple[np.ndarray, np.ndarray], lift: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """A decoded frame turned from its input frame (conditioned as the stream conditions it
+        now, so that :meth:`_emit` gives that frame back exactly) by each joint's intensity."""
+        if (self._intensity >= 1.0).all():
+            return styled
+        q, p = self._ring_q[:, 0], self._ring_p[:, 0]
+        q = q if self._rolls is None else self._rolls.conform(q)
+        p = (p if self._scale is None else self._scale.placed(p)) - lift
+        return blend(q, p, *styled, self._intensity[:, self._part], self._intensity[:, _LEGS])
 
     def _conditioned(self, q: np.ndarray, p: np.ndarray, fresh: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray]:
@@ -376,7 +428,8 @@ class StreamSession:
         """A decoded frame with its feet locked on the input's ``ankles`` (an anchored root stays
         where the lock held it) and the trajectory pulled towards the input's (``follow_seconds``)."""
         if self._foot_lock is not None:
-            locked = self._foot_lock(*frame, ankles)
+            strength = np.minimum(self._intensity[:, _LEGS] / LOCK_RAMP, 1.0)
+            locked = self._foot_lock(*frame, ankles, strength=strength)
             self._decoder.move(locked[1] - frame[1])
             frame = locked
         if self._follow_gain:
@@ -384,20 +437,47 @@ class StreamSession:
         return frame
 
     def _emit(self, t: float, q: np.ndarray, p: np.ndarray) -> None:
-        """Keep a model frame's output at stream time ``t``, in the stream's own joint frames."""
+        """Keep a model frame's output at stream time ``t``, in the stream's own joint frames, with
+        the raw input frame it was made from."""
         if self._rolls is not None:
             q, p = self._rolls.undo(q), self._scale.to_stream(p)
         self._outputs = [*self._outputs[-2:], (t, q, p)]
-        self._segment = None
+        self._inputs = [*self._inputs[-2:], (t, self._ring_q[:, 0].copy(), self._ring_p[:, 0].copy())]
+        self._segment = self._input_segment = None
 
     def _output(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """The model's output at stream time ``t``, between its last two frames (held outside)."""
-        t1, q1, p1 = self._outputs[-1]
-        if len(self._outputs) == 1 or t >= t1 - STAMP_TOLERANCE:
+        """The output at stream time ``t``: the model's, between its last two frames (held
+        outside), with what that interpolation misses of the input frame at ``t`` where the
+        intensity is below 1 (see the module docstring)."""
+        q, p = self._curve(self._outputs, "_segment", t)
+        if (self._intensity >= 1.0).all():
+            return q, p
+        q_curve, p_curve = self._curve(self._inputs, "_input_segment", t)
+        q_in, p_in = self._input_at(t)
+        keep = 1.0 - self._intensity
+        missed = rot.multiply(rot.conjugate(q_curve), q_in)
+        q = rot.multiply(q, toward(_IDENTITY, missed, keep[:, self._part]))
+        return q, p + keep[:, _LEGS, None] * (p_in - p_curve)
+
+    def _curve(self, frames: list, segment: str, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """``frames`` (three model frames) at ``t`` by their Hermite curve, kept in ``segment``."""
+        t1, q1, p1 = frames[-1]
+        if len(frames) == 1 or t >= t1 - STAMP_TOLERANCE:
             return q1.copy(), p1.copy()  # the caller may write into what it gets
-        if self._segment is None:
-            self._segment = Hermite(self._outputs)
-        return self._segment(t)
+        if getattr(self, segment) is None:
+            setattr(self, segment, Hermite(frames))
+        return getattr(self, segment)(t)
+
+    def _input_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The raw input at stream time ``t``: its frame there, or between the two around it."""
+        frames = self._frames
+        k = next((k for k in range(len(frames) - 1, -1, -1) if frames[k][0] <= t + STAMP_TOLERANCE), 0)
+        t0, q0, p0 = frames[k]
+        if k == len(frames) - 1 or abs(t - t0) <= STAMP_TOLERANCE or t < t0:
+            return q0, p0
+        t1, q1, p1 = frames[k + 1]
+        w = (t - t0) / (t1 - t0)
+        return rot.slerp(q0, q1, w), p0 + w * (p1 - p0)
 
     def _check_stamp(self, stamp: float | None) -> float:
         if stamp is None:
@@ -437,6 +517,9 @@ class StreamSession:
                 f"{norm:.3g}; expected unit quaternions (w, x, y, z)"
             )
         return q, p, single
+
+
+_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 
 def describe_calibration(calibration: dict) -> str:

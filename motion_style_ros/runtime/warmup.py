@@ -32,7 +32,6 @@ class _Echo:
     """A model step that gives each model frame's own root and rotations back."""
 
     delay_frames = 0
-    aligned = False
     styles = _CARD["styles"]
 
     def start(self, performers: int, blend_seconds: float) -> None:
@@ -41,7 +40,7 @@ class _Echo:
     def restart(self) -> None:
         pass
 
-    def __call__(self, frame: ModelFrame, style: np.ndarray, alpha: np.ndarray) -> Stylized:
+    def __call__(self, frame: ModelFrame, style: np.ndarray) -> Stylized:
         return Stylized(frame.features[:, :130], frame.features, frame.ankles, frame.lift)
 
 

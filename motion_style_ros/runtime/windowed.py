@@ -96,7 +96,6 @@ class OverlapWindows:
     the style inputs in ``start`` (:meth:`_start_codes`) and runs its model on the window in
     ``_history`` in :meth:`run_window`; its output frame is ``lookahead`` model frames behind its input."""
 
-    aligned = True
     WINDOW_LEAST = 4  # the fewest frames a window may have
     WINDOW_MULTIPLE = 1  # and what its length must be a multiple of
 
@@ -131,9 +130,9 @@ class OverlapWindows:
         self._codes_from = self._codes_to.copy()
         self._code_progress = np.ones(performers)
 
-    def run_window(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    def run_window(self, style: np.ndarray) -> np.ndarray:
         """The model's output ``(P, window, n_out)`` for the window in ``_history``, at the style
-        weights ``style`` ``(P, S)`` and ``alpha`` ``(P, 1)``."""
+        weights ``style`` ``(P, S)``."""
         raise NotImplementedError
 
     def restart(self) -> None:
@@ -146,7 +145,7 @@ class OverlapWindows:
         self._ankles = np.zeros((self.performers, self.lookahead + 1, 2, 3))
         self._lifts = np.zeros((self.performers, self.lookahead + 1, 3))  # and their ground lifts
 
-    def __call__(self, frame: ModelFrame, style: np.ndarray, alpha: np.ndarray) -> Stylized:
+    def __call__(self, frame: ModelFrame, style: np.ndarray) -> Stylized:
         """Adds the frame to the windows; returns frame ``n - lookahead``, blended from the windows
         that cover it (a window runs every ``hop`` frames, or when no window covers that frame)."""
         n, lookahead, fresh = self._n, self.lookahead, frame.fresh
@@ -169,7 +168,7 @@ class OverlapWindows:
         due = np.maximum(n - lookahead, self._start)  # the frame each performer emits now
         slot = due - (n - lookahead)
         if n - self._last_window >= self.hop or not self._ola.covered(slot).all():
-            self._ola.add(self.run_window(style, alpha))
+            self._ola.add(self.run_window(style))
             self._last_window = n
         blocks = self._ola.frame(slot)
         # A performer's first frame is shown until its lookahead has come in, refined as windows
@@ -227,8 +226,9 @@ class WindowedStep(OverlapWindows):
         self._mean_codes = self._mapped(*MEAN_SEEDS).mean(axis=0)
         self._start_codes(performers, blend_seconds, self.seed_codes(self._seed))
 
-    def run_window(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-        return self.model.run(features=self._history, code=self._code(style, alpha))["output"]
+    def run_window(self, style: np.ndarray) -> np.ndarray:
+        code = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes())
+        return self.model.run(features=self._history, code=code.astype(np.float32))["output"]
 
     # --- codes --------------------------------------------------------------------------------
 
@@ -246,15 +246,6 @@ class WindowedStep(OverlapWindows):
         style = np.tile(np.eye(n, dtype=np.float32), (len(seeds), 1))
         return self.mapping.run(z=z, style=style)["code"].astype(np.float64).reshape(len(seeds), n, -1)
 
-    def _code(self, style: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-        """``(P, D)`` float32 codes for the window in ``_history``: the style weights over each
-        performer's codes, moved from the window's own code by alpha."""
-        target = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes())
-        if (alpha >= 1.0).all():
-            return target.astype(np.float32)
-        out = self.style_encoder.run(features=self._history)
-        own = np.einsum("ps,psd->pd", _softmax(out["logits"]), out["codes"])
-        return (own + alpha * (target - own)).astype(np.float32)
 
 
 class WindowsSession(StreamSession):
