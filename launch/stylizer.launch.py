@@ -42,6 +42,8 @@ STYLIZER_ARGUMENTS = {
     'model': ('model', str, 'ONNX model: a file name in models/ or a path'),
     'target_style': ('target_style', str, 'style to perform, one of the model card\'s styles'),
     'alpha': ('alpha', float, 'style intensity, 0 (the input) .. 1'),
+    'part_alpha': ('part_alpha', yaml.safe_load,
+                   'alpha per body part, torso, arms, legs, e.g. "[1.0, 1.0, 0.0]" (legs as performed)'),
     'latent_seed': ('latent_seed', int, 'stgcn: latent seed (variation within a style)'),
     'seed_spread': ('seed_spread', float, 'stgcn: how much seeds differ, 0 .. 4 (1: as trained)'),
     'reference': ('reference', str, 'stgcn: a BVH clip whose style to move in'),

@@ -141,8 +141,8 @@ def stylizer(model, ros_env, tmp_path_factory):
 @pytest.fixture
 def rig(stylizer):
     """The stylizer at its default controls, every stream reset, nothing received yet."""
-    assert all(r.successful for r in stylizer.set(target_style="normal", alpha=1.0, mix_style="",
-                                                   mix_weight=0.0))
+    assert all(r.successful for r in stylizer.set(target_style="normal", alpha=1.0, part_alpha=[1.0] * 3,
+                                                   mix_style="", mix_weight=0.0))
     assert stylizer.reset().success
     for received in stylizer.listener.received.values():
         received.clear()
@@ -336,6 +336,37 @@ def test_parameters_change_live_and_bad_values_are_rejected(rig, recorded, model
     unchanged = [e for e, _, _ in offline(model, frames)]
     assert difference(got, expected) < 1e-5  # took effect at frame 60; the rejected ones did nothing
     assert difference(got[60:], unchanged[60:]) > 1e-3
+
+
+def test_alpha_zero_gives_every_frame_back_and_part_alpha_keeps_the_legs(rig, recorded):
+    """Through the node, a recorded CMU walk at 120 Hz: at alpha 0 every published frame is the
+    input frame of the stream's latency before (3 frames), to float precision; with the legs' part
+    alpha at 0, the legs (and the root) are, while the arms are restyled."""
+    frames = recorded[:120]
+    delay = 3  # 1/30 s - 1/120 s
+    inputs = np.array([v for _, v in frames])
+    legs = [k for k, name in enumerate(LAYOUT.names) if name.startswith(("root", "UpperLeg", "LowerLeg",
+                                                                          "Foot", "Toes"))]
+    arms = [k for k, name in enumerate(LAYOUT.names) if "Arm" in name or "Hand" in name]
+    assert all(r.successful for r in rig.set(alpha=0.0))
+    rig.reset()
+    rig.send("p1", frames)
+    got = positions(rig.states["p1"])
+    assert difference(got[delay:], inputs[:-delay]) < 1e-6
+    rig.states["p1"].clear()
+    assert all(r.successful for r in rig.set(alpha=1.0, part_alpha=[1.0, 1.0, 0.0]))
+    rig.reset()
+    rig.send("p1", frames)
+    got = positions(rig.states["p1"])
+    d = got[delay:] - inputs[:-delay]
+    d[:, LAYOUT.angular] = np.mod(d[:, LAYOUT.angular] + np.pi, 2 * np.pi) - np.pi
+    assert np.abs(d[:, legs]).max() < 1e-6 and np.abs(d[:, arms]).max() > 0.05
+    for bad, reason in (([1.0, 2.0, 0.0], "part alpha must be 3 numbers in [0, 1], for torso, arms, legs; "
+                                          "got [1.0, 2.0, 0.0]"),
+                        ([1.0, 1.0], "part alpha must be 3 numbers in [0, 1], for torso, arms, legs"),
+                        ("legs", "part_alpha must be of type array, got string 'legs'")):
+        (result,) = rig.set(part_alpha=bad)
+        assert not result.successful and reason in result.reason, (bad, result.reason)
 
 
 def test_reset_starts_every_stream_afresh(rig, recorded, model):

@@ -7,8 +7,10 @@ reaches them. The defaults of the sessions' own settings come from
 
 from __future__ import annotations
 
+import array
 from dataclasses import dataclass
 
+from motion_style_ros.core.intensity import PARTS, check_part_alpha
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.backends import BACKENDS, Backend, with_feature
 from motion_style_ros.runtime.defaults import DEFAULTS
@@ -19,8 +21,10 @@ from motion_style_ros.runtime.windowed import MAX_SPREAD
 
 # Parameters that change live, with their types (checked by the node: rclpy's own message would
 # name the types by number).
-DYNAMIC = {"target_style": str, "alpha": float, "mix_style": str, "mix_weight": float,
+DYNAMIC = {"target_style": str, "alpha": float, "part_alpha": list, "mix_style": str, "mix_weight": float,
            "latent_seed": int, "seed_spread": float, "reference": str, "frame_id": str}
+# what an array parameter's value may arrive as (rclpy gives a set double array as array('d'))
+_SEQUENCES = (list, tuple, array.array)
 TYPE_NAMES = {str: "string", float: "double", int: "integer", bool: "bool", list: "array",
               type(None): "nothing (not set)"}
 
@@ -84,8 +88,11 @@ PARAMETERS = (
     Parameter("pipelined", DEFAULTS["pipelined"], "publish each frame before running the model frames it "
               "does not need, which then run between frames: every frame costs an interpolation on its "
               "way through, at one input frame more latency (1/input_fps)"),
-    Parameter("alpha", 1.0, "strength of the style: 0 = the model's neutral motion, 1 = the full style",
-              0.0, 1.0),
+    Parameter("alpha", 1.0, "intensity of the style: 0 = the performer's own motion, exactly; 1 = the "
+              "full style; between, every joint turned that far towards the style", 0.0, 1.0),
+    Parameter("part_alpha", [1.0] * len(PARTS), f"alpha per body part, {', '.join(PARTS)} (legs with the "
+              "pelvis and the root's path), each 0 to 1: [1.0, 1.0, 0.0] restyles torso and arms and keeps "
+              "the legs as performed"),
     Parameter("mix_style", "", "a second style mixed in with mix_weight; '' = none"),
     Parameter("mix_weight", 0.0, "weight of mix_style: 0 = target_style alone, 1 = mix_style alone",
               0.0, 1.0),
@@ -171,7 +178,7 @@ def sessions(spec: Backend, model: str, count: int, values: dict) -> list:
 def wrong_type(key: str, value, want: type) -> str | None:
     """Why ``value`` of the live parameter ``key`` is not of type ``want``, with ROS's type names
     (rclpy's own message would name them by number), or None."""
-    if type(value) is want:
+    if type(value) is want or (want is list and isinstance(value, _SEQUENCES)):
         return None
     got = TYPE_NAMES.get(type(value), type(value).__name__)
     return f"{key} must be of type {TYPE_NAMES[want]}, got {got} {value!r}"
@@ -186,6 +193,11 @@ def problem(key: str, value, styles: list[str], spec: Backend) -> str | None:
             key == "mix_style" and value == ""):
         return (f"unknown style {value!r}; this model knows: {', '.join(styles)}"
                 + (" ('' = no mix)" if key == "mix_style" else ""))
+    if key == "part_alpha":
+        try:
+            check_part_alpha(value)
+        except MotionStyleError as exc:
+            return str(exc)
     if key == "reference" and value and not spec.reference_clips:
         return (f"a reference clip needs backend {' or '.join(with_feature('reference_clips'))} (its "
                 f"style encoder); this node runs {spec.name}: '' is the only value allowed")
@@ -203,6 +215,8 @@ def apply(sessions_: list, spec: Backend, settings: dict, changes: dict, referen
             session.set_style(changes["target_style"])
         if "alpha" in changes:
             session.set_alpha(changes["alpha"])
+        if "part_alpha" in changes:
+            session.set_part_alpha(changes["part_alpha"])
         if "mix_style" in changes or "mix_weight" in changes:
             session.set_mix(settings["mix_style"] or None, settings["mix_weight"])
         dropped = "reference" in changes and not settings["reference"]
