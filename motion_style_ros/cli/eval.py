@@ -48,6 +48,10 @@ def add_parser(subparsers):
                    help="instead: stylize the CMU and Xia neutral clips (other rigs and studios, "
                         "retargeted) into every style and check for NaN, joint flips, foot skating "
                         "against the input's and bone lengths; writes unseen.json and pictures")
+    p.add_argument("--posture", action="store_true",
+                   help="with --unseen: the knee and hip flexion of every output against its input's, "
+                        "per style, beside how far each style moves real performers (Bandai test "
+                        "takes against normal's), with foot skating and the floor; writes posture.json")
     p.add_argument("--seed-spread", type=float, default=None, metavar="S",
                    help="stgcn: seeds' codes spread S times as far from their style's mean code "
                         "(default: 1, as trained); --record writes it as eval_seed_spread_S")
@@ -138,6 +142,10 @@ def run(args: argparse.Namespace) -> int:
         if len(names) != 1:
             raise MotionStyleError("--live streams one stylizer: give one --stylizer")
         return eval_live.run(args, names[0])
+    if args.posture:
+        if not args.unseen or args.reference_codes:
+            raise MotionStyleError("--posture goes with --unseen (the CMU and Xia clips), without --reference-codes")
+        return run_posture(args, stylizers)
     if args.unseen:
         if args.reference_codes:  # references: Bandai test takes of the target style
             from motion_style_ros.evaluation.references import ReferenceStylizer
@@ -311,6 +319,33 @@ def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
         key = ("unseen_reference_codes" if args.reference_codes else "unseen") + (
             "_no_foot_lock" if args.no_foot_lock else "")
         _record(args, key, {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})
+    return 0
+
+
+def run_posture(args: argparse.Namespace, stylizers: dict) -> int:
+    import json
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.evaluation import harness, posture, unseen
+    from motion_style_ros.runtime.offline import default_model
+    from motion_style_ros.runtime.onnx_model import model_path, read_card
+
+    if not stylizers:
+        raise MotionStyleError("--posture checks trained stylizers: name one with --stylizer")
+    clips = unseen.neutral_clips()
+    shifts = posture.style_shifts(harness.held_out_clips(progress=not args.quiet))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    reports = {}
+    for name, stylize in stylizers.items():
+        styles = read_card(model_path(args.model or default_model(name)))["styles"]
+        reports[name] = posture.evaluate(stylize, styles, clips, shifts)
+        print(posture.format_table(name, reports[name]))
+    path = out / "posture.json"
+    settings = {"alpha": args.alpha, "clips": len(clips), **({"foot_lock": False} if args.no_foot_lock else {})}
+    path.write_text(json.dumps({"settings": settings, "bandai_shifts": shifts, **reports}, indent=1) + "\n")
+    print(f"wrote {path}")
     return 0
 
 
