@@ -371,11 +371,12 @@ def recorded(datasets):
 
 
 @pytest.mark.parametrize("clip", ["procedural", "recorded"])
-def test_stylizer_at_alpha_zero_is_measured(request, start, listener, clip):
-    """alpha 0 is Style-ERD's neutral branch, a reconstruction, and the session conforms arm rolls,
-    grounds and foot-locks the stream: not the identity. Measured, not asserted."""
+def test_stylizer_at_alpha_zero_returns_every_bone_as_sent(request, start, listener, clip):
+    """alpha 0 is the performer: through the stylizer, every bone of the frame shown comes back as
+    the relay gives it back (the stream's latency later)."""
     frames = request.getfixturevalue("sent" if clip == "procedural" else "recorded")
     params = dict(input_fps=FPS, target_style="elderly", alpha=0.0)
     out = run_stream(frames, start, listener, free_port(), free_port(), ("stylizer", params), "bundle")
     figures = check_stream(out, frames, round(1e9 / 30 - 1e9 / 60))
+    assert figures["body_deg_max"] < 0.5 and figures["body_m_max"] < 1e-3, figures
     report(f"stylizer_alpha0_{clip}", figures)

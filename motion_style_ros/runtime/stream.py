@@ -51,7 +51,8 @@ names them) that turns each model frame's conditioned features into stylized fea
   comes in over the first ``LOCK_RAMP`` of the legs' intensity, so alpha 0 locks nothing. Between
   model frames (input faster than the model), an output whose intensity is below 1 also gets that
   share of what the model frames' interpolation misses of the input: alpha 0 gives every input
-  frame back as it came (to float precision), ``latency`` later.
+  frame back as it came (to float precision), ``latency`` later (the frame within a quarter of a
+  frame of that time, where stamps jitter).
 - **Bad input.** A frame with the wrong shape or dtype, NaN/Inf or non-unit quaternions raises
   :class:`MotionStyleError` before anything changes: the next good frame continues as if the
   bad one never came. Quaternions within 10 % of unit length are normalised.
@@ -469,13 +470,16 @@ class StreamSession:
         return getattr(self, segment)(t)
 
     def _input_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """The raw input at stream time ``t``: its frame there, or between the two around it."""
-        frames = self._frames
-        k = next((k for k in range(len(frames) - 1, -1, -1) if frames[k][0] <= t + STAMP_TOLERANCE), 0)
+        """The raw input at stream time ``t``: the frame within a quarter of a frame of it (stamps
+        of a live stream jitter: alpha 0 still shows whole frames), else between the two around it."""
+        frames, snap = self._frames, 0.25 / self.input_fps
+        k = next((k for k in range(len(frames) - 1, -1, -1) if frames[k][0] <= t + snap), 0)
         t0, q0, p0 = frames[k]
-        if k == len(frames) - 1 or abs(t - t0) <= STAMP_TOLERANCE or t < t0:
+        if k == len(frames) - 1 or t <= t0 + snap:
             return q0, p0
         t1, q1, p1 = frames[k + 1]
+        if t >= t1 - snap:
+            return q1, p1
         w = (t - t0) / (t1 - t0)
         return rot.slerp(q0, q1, w), p0 + w * (p1 - p0)
 
