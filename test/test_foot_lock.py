@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.foot_lock import REACH, FootLock, OwnContact
+from motion_style_ros.core.foot_lock import FootLock, OwnContact
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.evaluation import metrics
 from motion_style_ros.io.datasets import ClipInfo, load_clip
@@ -51,8 +51,8 @@ def test_locking_cuts_foot_skating_and_leaves_the_rest_alone(walk):
                                              "UpperLeg_R", "LowerLeg_R", "Foot_R")]
     others = [j for j in range(walk.skeleton.n_joints) if j not in legs]
     assert np.array_equal(fixed.rotations[:, others], slid.rotations[:, others])
-    pelvis = walk.skeleton.pelvis  # its height within REACH of the stylizer's
-    assert np.abs(fixed.positions[:, pelvis, 1] - slid.positions[:, pelvis, 1]).max() <= REACH + 1e-12
+    pelvis = walk.skeleton.pelvis
+    assert np.array_equal(fixed.positions[:, pelvis, 1], slid.positions[:, pelvis, 1])
     assert metrics.bone_length_error(fixed, walk.skeleton) < 1e-9
     # No pops: a locked leg turns about as fast as the input's legs do at most.
     def largest_step(m):
@@ -195,22 +195,29 @@ def test_an_anchored_root_covers_the_ground_its_legs_cover(walk):
 
 
 
-def test_the_pelvis_not_the_knees_takes_up_a_floor_that_is_off(walk, monkeypatch):
-    """The input's floor 4 cm above the stylizer's (another rig's ankles): the body rises and the
-    legs keep the stylizer's extension; bending the knees instead is the crouch."""
-    from motion_style_ros.core import foot_lock
+def test_a_forward_foot_is_lifted_at_the_hip_a_rear_one_at_the_knee(walk):
+    """The walk 5 cm lower than its input (another rig's floor): clearance lifts the swinging feet
+    to the input's; a foot in front of its hip by swinging the leg up (its knee as the walk's
+    own), one behind it at the knee."""
     from motion_style_ros.evaluation.posture import leg_angles
 
-    roots = walk.positions[:, walk.skeleton.pelvis] + np.array([0.0, 0.04, 0.0])
-    higher = Motion.from_rotations(walk.skeleton, walk.rotations, roots, walk.fps)
-    own = leg_angles(walk)["knee"]
-    fixed = locked(walk, FootLock(1, walk.fps), source=higher)
-    bent = (leg_angles(fixed)["knee"] - own).mean()
-    rose = fixed.positions[:, walk.skeleton.pelvis, 1] - walk.positions[:, walk.skeleton.pelvis, 1]
-    assert 0.005 < rose.mean() and rose.max() <= REACH
-    monkeypatch.setattr(foot_lock, "REACH", 0.0)  # the pelvis held: the knees bend instead
-    crouched = locked(walk, FootLock(1, walk.fps), source=higher)
-    assert bent < 3.0 and bent < 0.6 * (leg_angles(crouched)["knee"] - own).mean()
+    roots = walk.positions[:, walk.skeleton.pelvis] - np.array([0.0, 0.05, 0.0])
+    low = Motion.from_rotations(walk.skeleton, walk.rotations, roots, walk.fps)
+    lock = FootLock(1, walk.fps)
+    fixed = locked(low, lock, source=walk)
+    sk, g = walk.skeleton, walk.global_positions()
+    ankles, hips = g[:, lock.ankles], g[:, [sk.index("UpperLeg_L"), sk.index("UpperLeg_R")]]
+    facing = np.diff(roots[:, [0, 2]], axis=0, append=roots[-1:, [0, 2]] - roots[-2:-1, [0, 2]])
+    facing /= np.linalg.norm(facing, axis=-1, keepdims=True)
+    ahead = np.einsum("tsc,tc->ts", (ankles - hips)[..., [0, 2]], facing)
+    speed = np.linalg.norm(np.diff(ankles, axis=0, prepend=ankles[:1]), axis=-1) * walk.fps
+    lifted = (ankles[..., 1] > 0.13) & (speed > 0.3)  # off the floor and moving: clearance holds it up
+    n = walk.n_frames
+    knee_in, knee_out = (leg_angles(m)["knee"].reshape(2, n).T for m in (walk, fixed))
+    forward, behind = lifted & (ahead > 0.15), lifted & (ahead < -0.15)
+    assert forward.sum() > 10 and behind.sum() > 10
+    assert np.abs(knee_out[forward] - knee_in[forward]).mean() < 2.0
+    assert (knee_out[behind] - knee_in[behind]).mean() > 5.0
 
 
 def test_strength_turns_the_correction_only_that_far(walk):

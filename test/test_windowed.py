@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from onnx_fixtures import windowed_model
 
-from motion_style_ros.core.foot_lock import REACH
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd, taper
 from motion_style_ros.errors import MotionStyleError
@@ -196,16 +195,11 @@ def test_the_offline_stylizer_streams_clips_through_the_session(identity_model, 
 
     out = stylizer("stgcn", str(identity_model), follow_seconds=None)(walk, "elderly")
     assert out.n_frames == walk.n_frames
-    # foot locking (on by default) may turn the legs and move the pelvis up or down; everything
-    # else is the input
-    pelvis = walk.skeleton.pelvis
+    # foot locking (on by default) may turn the legs; everything else is the input
     upper = [j for j, name in enumerate(walk.skeleton.names) if "Leg" not in name and "Foot" not in name
-             and "Toes" not in name and j >= pelvis]
-    out_g, in_g = out.global_positions(), walk.global_positions()
-    moved = np.abs((out_g - out_g[:, pelvis:pelvis + 1]) - (in_g - in_g[:, pelvis:pelvis + 1]))
+             and "Toes" not in name]
+    moved = np.abs(out.global_positions() - walk.global_positions())
     assert moved[:, upper].max() < 1e-5
-    assert np.abs(out_g[:, pelvis, [0, 2]] - in_g[:, pelvis, [0, 2]]).max() < 1e-5
-    assert np.abs(out_g[:, pelvis, 1] - in_g[:, pelvis, 1]).max() <= REACH
 
 
 def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, random_model, walk):
@@ -214,9 +208,8 @@ def test_measurements_of_the_identity_find_no_seams_and_no_cost(identity_model, 
     rows = windowed.lookahead_costs([(walk, "elderly")], identity_model, lookaheads=(0, 8), hop=4)
     assert [r["lookahead"] for r in rows] == [0, 8]
     for row in rows:
-        # (the foot lock moves the pelvis of a clean walk up or down by a few millimetres)
-        assert row["jump_ratio_max"] == pytest.approx(1.0, abs=0.05)
-        assert row["jump_over_most_lookahead_max"] == pytest.approx(1.0, abs=0.01)
+        assert row["jump_ratio_max"] == pytest.approx(1.0, abs=1e-3)
+        assert row["jump_over_most_lookahead_max"] == pytest.approx(1.0, abs=1e-3)
         # (under a millimetre, not zero: the foot lock on the legs of a stream conditioned to its
         # measured size engages a frame apart depending on how long the first frame is held)
         assert row["distance_from_most_lookahead_m"] < 1e-3

@@ -379,8 +379,8 @@ def _unit_clip(x: float) -> float:
 @njit(cache=True)
 def lock_feet(parents, offsets, pelvis, hips, knees, ankles, toes, heights, rotations, roots, inputs,
               last, last_out, last_root, back, target, landed, offset, heading, turn, glide, weight, locked,
-              axis, rise, placed, fps, speed, max_stretch, fade, clearance, anchor_root, anchor_stretch, glide_rate, near,
-              down_height, anchor_ease, max_rise, rise_ease, lift_ramp, swing_reach, eps):
+              axis, placed, fps, speed, max_stretch, fade, clearance, anchor_root, anchor_stretch, glide_rate, near,
+              down_height, anchor_ease, swing_reach, eps):
     """:class:`~motion_style_ros.core.foot_lock.FootLock`'s frame (see its module for what each
     step does and why): the output's local rotations ``(P, J, 4)`` and roots ``(P, 3)``, the lock's
     state arrays updated in place; ``inputs`` ``(P, 2, 3)``: the input's ankles."""
@@ -401,7 +401,6 @@ def lock_feet(parents, offsets, pelvis, hips, knees, ankles, toes, heights, rota
         _fk_row(parents, rotations[r], positions, g_rot[r], g_pos[r])
         contact = np.zeros(2, dtype=np.bool_)
         forward = np.zeros(2)  # how far the ankle is in front of its hip (along its foot), 0 to 1
-        pull = np.zeros(2)
         held = np.empty(2)
         away = np.empty((2, 3))
         for s in range(2):
@@ -477,62 +476,23 @@ def lock_feet(parents, offsets, pelvis, hips, knees, ankles, toes, heights, rota
             eased = x * x * (3.0 - 2.0 * x)  # easing.smoothstep
             for c in range(3):
                 goal[r, s, c] = target[r, s, c] if contact[s] else g_pos[r, a, c] + eased * offset[r, s, c]
-            if contact[s]:  # a held ankle may rise with the stylizer's (the heel coming off), never sink
-                goal[r, s, 1] = max(goal[r, s, 1], g_pos[r, a, 1])
             foot_turn[r, s] = held[s] if contact[s] else eased * turn[r, s]
-            pull[s] = 1.0 if contact[s] else eased
-        # The pelvis goes where the legs reach their goals with the stylizer's extension (its
-        # hip-to-ankle distance), rather than the knees bending or stretching to them: the mean
-        # of the wanted heights of the held legs and of free legs that clearance lifts, weighted
-        # by the hold and the lift, no higher than a planted leg reaches, eased, and at most
-        # ``max_rise`` from the stylizer's.
-        total, mean, cap = 0.0, 0.0, math.inf
-        clear = np.empty(2)  # how high clearance holds a free ankle: off the floor where the input's is
-        for s in range(2):
-            clear[s] = inputs[r, s, 1] if clearance else -math.inf
-            if not contact[s]:
-                lifted = clear[s] - goal[r, s, 1]
-                if lifted > 0.0:
-                    pull[s] = max(pull[s], min(lifted / lift_ramp, 1.0))
-            if pull[s] <= 0.0:
-                continue
-            hip, a = hips[s], ankles[s]
-            extent = _norm3(g_pos[r, a, 0] - g_pos[r, hip, 0], g_pos[r, a, 1] - g_pos[r, hip, 1],
-                            g_pos[r, a, 2] - g_pos[r, hip, 2])
-            height = goal[r, s, 1] if contact[s] else max(goal[r, s, 1], clear[s])
-            across = (goal[r, s, 0] - g_pos[r, hip, 0]) ** 2 + (goal[r, s, 2] - g_pos[r, hip, 2]) ** 2
-            want = height + math.sqrt(max(extent * extent - across, 0.0)) - g_pos[r, hip, 1]
-            total += pull[s]
-            mean += pull[s] * want
-            if contact[s]:
-                cap = min(cap, want)
-        want = 0.0 if total <= 0.0 else max(pull[0], pull[1]) * min(mean / total, cap)
-        rise[r] += rise_ease * (want - rise[r])
-        rise[r] = min(max(min(rise[r], cap), -max_rise), max_rise)  # eased, never past a planted leg's reach
-        root[r, 1] += rise[r]
-        for s in range(2):
-            g_pos[r, hips[s], 1] += rise[r]
-            g_pos[r, knees[s], 1] += rise[r]
-            g_pos[r, ankles[s], 1] += rise[r]
-            a = ankles[s]
-            if not contact[s]:  # a free foot goes up with the body, not down (a swinging toe would brush the floor)
-                goal[r, s, 1] += max(rise[r], 0.0)
-                if clear[s] > goal[r, s, 1]:
-                    # lifted by clearance: a leg reaching forward swings up about the hip at the
-                    # stylizer's extension (bending a straight leg's knee turns it
-                    # far for a few cm); one behind the hip bends its knee (its toes would drag);
-                    # in between, the goal goes part of the way, by how far forward the ankle is
-                    hip = hips[s]
-                    dx, dz = goal[r, s, 0] - g_pos[r, hip, 0], goal[r, s, 2] - g_pos[r, hip, 2]
-                    extent2 = ((g_pos[r, a, 0] - g_pos[r, hip, 0]) ** 2 + (g_pos[r, a, 1] - g_pos[r, hip, 1]) ** 2
-                               + (g_pos[r, a, 2] - g_pos[r, hip, 2]) ** 2)
-                    goal[r, s, 1] = clear[s]
-                    drop = goal[r, s, 1] - g_pos[r, hip, 1]
-                    across = math.sqrt(dx * dx + dz * dz)
-                    if forward[s] > 0.0 and extent2 > drop * drop and across > eps:
-                        scale = 1.0 + forward[s] * (math.sqrt(extent2 - drop * drop) / across - 1.0)
-                        goal[r, s, 0] = g_pos[r, hip, 0] + scale * dx
-                        goal[r, s, 2] = g_pos[r, hip, 2] + scale * dz
+            if clearance and not contact[s] and inputs[r, s, 1] > goal[r, s, 1]:
+                # lifted as high as the input's: a leg reaching forward swings up about the hip at
+                # the stylizer's extension (bending a straight leg's knee turns it far for a few
+                # cm); one behind the hip bends its knee (its toes would drag); in between, the
+                # goal goes part of the way, by how far forward the ankle is
+                hip = hips[s]
+                dx, dz = goal[r, s, 0] - g_pos[r, hip, 0], goal[r, s, 2] - g_pos[r, hip, 2]
+                extent2 = ((g_pos[r, a, 0] - g_pos[r, hip, 0]) ** 2 + (g_pos[r, a, 1] - g_pos[r, hip, 1]) ** 2
+                           + (g_pos[r, a, 2] - g_pos[r, hip, 2]) ** 2)
+                goal[r, s, 1] = inputs[r, s, 1]
+                drop = goal[r, s, 1] - g_pos[r, hip, 1]
+                across = math.sqrt(dx * dx + dz * dz)
+                if forward[s] > 0.0 and extent2 > drop * drop and across > eps:
+                    scale = 1.0 + forward[s] * (math.sqrt(extent2 - drop * drop) / across - 1.0)
+                    goal[r, s, 0] = g_pos[r, hip, 0] + scale * dx
+                    goal[r, s, 2] = g_pos[r, hip, 2] + scale * dz
             gap = _norm3(goal[r, s, 0] - g_pos[r, a, 0], goal[r, s, 1] - g_pos[r, a, 1], goal[r, s, 2] - g_pos[r, a, 2])
             moved[r, s] = gap > near or abs(foot_turn[r, s]) > near
             placed[r, s] = goal[r, s]
