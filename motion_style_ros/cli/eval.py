@@ -77,9 +77,8 @@ def add_parser(subparsers):
                    help="--enrol, stgcn: the encoder head to read (a style, or mix; default: the closest)")
     p.add_argument("--controls", action="store_true",
                    help="instead (stgcn): the cost of each lookahead (0, 8, 16, 32), the "
-                        "diversity of latent seeds against styles, and how closely alpha 0 "
-                        "reproduces the input, on one test take per (content, style); writes "
-                        "controls.json")
+                        "diversity of latent seeds against styles, on one test take per (content, "
+                        "style); writes controls.json")
     p.add_argument("--live", action="store_true",
                    help="instead: stream every CMU and Xia clip through real nodes (bvh_player -> "
                         "stylizer per style, over DDS; the clip retargeted, not conformed, as a live "
@@ -372,17 +371,13 @@ def run_controls(args: argparse.Namespace) -> int:
                                  "diversity as above",
                         "rows": windowed.seed_spread_costs(pairs, sources, windowed.DIVERSITY_STYLES,
                                                            model)},
-        "alpha_zero": {**windowed.alpha_zero_error(pairs, model),
-                       "meaning": "alpha 0 (the source's own style code) against the source: mean "
-                                  "pelvis-relative joint distance and local rotation angle"},
     }
     for row in report["lookahead_costs"]["rows"]:
         print("lookahead " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items() if k != "lookahead")
               + f" (lookahead {row['lookahead']})")
     for row in report["seed_spread"]["rows"]:
         print("seed spread " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items()))
-    for key in ("diversity", "alpha_zero"):
-        print(f"{key}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report[key].items() if k != "meaning"))
+    print("diversity: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report["diversity"].items() if k != "meaning"))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "controls.json").write_text(json.dumps(report, indent=1) + "\n")

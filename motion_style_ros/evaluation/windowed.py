@@ -142,20 +142,6 @@ def seed_spread_costs(pairs: list[tuple[Motion, str]], sources: list[Motion], st
     return rows
 
 
-def alpha_zero_error(sources: list[tuple[Motion, str]], model: str | Path = DEFAULT_MODEL) -> dict:
-    """How closely alpha 0 (each source's own style code, from the style encoder) reproduces the
-    sources: mean pelvis-relative joint distance (m) and mean local rotation angle (degrees)."""
-    from motion_style_ros.core import rotations as rot
-
-    session = WindowedSession(model, **PUBLISHED)
-    outs = [session.run(source, style, alpha=0.0) for source, style in sources]
-    distance = np.mean([np.linalg.norm(_local(o) - _local(s), axis=-1).mean() for o, (s, _) in zip(outs, sources)])
-    angle = np.mean([np.degrees(rot.angle_between(o.rotations, s.rotations)).mean()
-                     for o, (s, _) in zip(outs, sources)])
-    return {"joint_distance_m": round(float(distance), 4), "rotation_deg": round(float(angle), 2),
-            "sources": len(sources)}
-
-
 def control_pairs(clips: list[Clip], seed: int = 0) -> list[tuple[Motion, str]]:
     """One seeded test take per (content, style) cell, each with the next style in order."""
     from motion_style_ros.evaluation.harness import make_pairs

@@ -19,9 +19,8 @@ rejected, foot locking, conditioning) around a :class:`WindowedStep`, the genera
 - **Style codes.** Each performer has a code per style from the mapping network and its latent
   seed (:func:`latent`: the same seed gives the same code on every machine), or a reference clip's
   code through the style encoder (:meth:`set_reference`). The code a window gets is the codes
-  mixed by the style weights (style and mix), then moved from the window's own style code (the
-  style encoder on the input window) towards it by alpha: alpha 0 reproduces the input. Seed and
-  reference changes blend over ``blend_seconds`` like style and alpha.
+  mixed by the style weights (style and mix); the stream session applies alpha to the output
+  frames. Seed and reference changes blend over ``blend_seconds`` like style.
 - **Seed spread.** A seed's code is moved away from (or towards) its style's mean code, the mean
   over :data:`MEAN_SEEDS` fixed seeds, by ``seed_spread`` (StyleGAN's truncation trick, read the
   other way): 1 is the mapping network's code as trained, 0 gives every seed the style's mean
