@@ -66,6 +66,21 @@ def test_package_xml_is_format_3_ament_python(package_xml):
     assert {"ament_copyright", "ament_flake8", "ament_pep257", "python3-pytest"} <= test_depends
 
 
+def test_every_ros_package_the_code_imports_is_an_exec_depend(package_xml):
+    """rosdep installs what package.xml names: every ROS package the nodes and the launch file
+    import (messages, services, launch, rclpy) and PyYAML must be there."""
+    imported = set()
+    for path in [*(ROOT / "motion_style_ros").rglob("*.py"), *(ROOT / "launch").glob("*.py")]:
+        imported |= set(re.findall(r"^\s*(?:from|import) ([a-z_]+)", path.read_text(), re.MULTILINE))
+    ros = {m for m in imported if m.endswith(("_msgs", "_srvs", "_interfaces")) or m.startswith(("launch", "rclpy"))}
+    assert {"rclpy", "sensor_msgs", "launch_ros"} <= ros  # the scan finds them
+    declared = {e.text for e in package_xml.findall("exec_depend")}
+    wanted = ros | ({"lifecycle_msgs"} if "rclpy.lifecycle" in "".join(
+        p.read_text() for p in (ROOT / "motion_style_ros" / "nodes").glob("*.py")) else set())
+    assert wanted - declared == set()
+    assert "yaml" not in imported or "python3-yaml" in declared
+
+
 def test_versions_agree(package_xml, setup_kwargs):
     assert package_xml.findtext("version") == setup_kwargs["version"] == motion_style_ros.__version__
 
