@@ -144,6 +144,10 @@ def run_recurrent(args) -> int:
     frame = dict(zip(("p50_us", "p99_us"), np.percentile(frames, [50, 99]).round(1).tolist()))
     print(f"whole model frame back to back (1 performer, input at the model's {session.fps:g} Hz): "
           f"p50 {frame['p50_us']:.0f} us, p99 {frame['p99_us']:.0f} us")
+    contact = _contact_costs(args.seconds)
+    print(f"contact handling alone per model frame, 1 performer: foot lock p50 {contact['foot_lock'][0]:.0f} us, "
+          f"p99 {contact['foot_lock'][1]:.0f} us; alpha below 1, the blend with the input frame p50 "
+          f"{contact['blend'][0]:.0f} us, p99 {contact['blend'][1]:.0f} us")
     calls = _model_calls(path, session.card, args.checkpoint, args.threads, args.seconds)
     for name, (p50, p99) in calls.items():
         print(f"model call alone, 1 performer, {name}: p50 {p50:.0f} us, p99 {p99:.0f} us")
@@ -233,6 +237,38 @@ def _reference_step() -> dict | None:
         return None
     p50, p99 = reference_step_times(REFERENCE_THREADS)
     return {"p50_us": round(p50, 1), "p99_us": round(p99, 1), "threads": REFERENCE_THREADS}
+
+
+def _contact_costs(seconds: float) -> dict[str, tuple[float, float]]:
+    """p50 and p99 (us) of the foot lock's call and of the intensity blend on one performer's
+    model frames (a synthetic walk at 30 Hz, its own ankles as the input's), ``seconds`` each."""
+    import time
+
+    import numpy as np
+
+    from motion_style_ros.core.foot_lock import FootLock
+    from motion_style_ros.core.intensity import blend
+    from motion_style_ros.core.synthetic import synthetic_motion
+
+    walk = synthetic_motion("walk", 30.0, 4.0)
+    lock = FootLock(1, walk.fps)
+    roots, ankles = walk.root_positions, walk.global_positions()[:, lock.ankles]
+    weights, half = np.full((1, walk.skeleton.n_joints), 0.5), np.full(1, 0.5)
+    runs = {
+        "foot_lock": lambda k: lock(walk.rotations[k:k + 1], roots[k:k + 1], ankles[k:k + 1]),
+        "blend": lambda k: blend(walk.rotations[k:k + 1], roots[k:k + 1], walk.rotations[k - 1:k],
+                                 roots[k - 1:k], weights, half),
+    }
+    costs = {}
+    for name, run in runs.items():
+        times, end = [], time.monotonic() + seconds
+        while time.monotonic() < end:
+            for k in range(1, walk.n_frames):
+                start = time.perf_counter_ns()
+                run(k)
+                times.append((time.perf_counter_ns() - start) / 1e3)
+        costs[name] = tuple(np.percentile(times, [50, 99]))
+    return costs
 
 
 def _model_calls(path, card: dict, checkpoint, threads: int, seconds: float, calls: int = 2000) -> dict:
