@@ -87,3 +87,18 @@ def test_legs_as_performed_arms_in_the_full_style(walk, fps):
     assert angle < 1e-6 and distance < 1e-6, (angle, distance)
     assert differences(parted, styled, arms)[0] < 1e-6
     assert differences(styled, clip, arms)[0] > 0.1
+
+
+def test_stylize_at_alpha_zero_writes_the_clip_back(datasets, tmp_path):
+    """The command a user runs, on a CMU file (another rig, 120 Hz, its T-pose first): the BVH it
+    writes at --alpha 0 is the input as the stylizers take it, every frame."""
+    from motion_style_ros.cli.main import main
+    from motion_style_ros.io.canonical import canonical_clip
+
+    source = datasets / "cmu/data/02/02_01.bvh"
+    out = tmp_path / "out.bvh"
+    assert main(["stylize", str(source), "-o", str(out), "--style", "elderly", "--alpha", "0"]) == 0
+    written, clip = canonical_clip(str(out)), canonical_clip(str(source))
+    assert written.n_frames == clip.n_frames
+    angle, distance = differences(written, clip)
+    assert angle < 1e-6 and distance < 1e-6, (angle, distance)
