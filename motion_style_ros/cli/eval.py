@@ -332,17 +332,18 @@ def run_posture(args: argparse.Namespace, stylizers: dict) -> int:
 
     if not stylizers:
         raise MotionStyleError("--posture checks trained stylizers: name one with --stylizer")
-    clips = unseen.neutral_clips()
     shifts = posture.style_shifts(harness.held_out_clips(progress=not args.quiet))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     reports = {}
     for name, stylize in stylizers.items():
-        styles = read_card(model_path(args.model or default_model(name)))["styles"]
-        reports[name] = posture.evaluate(stylize, styles, clips, shifts)
-        print(posture.format_table(name, reports[name]))
+        card = read_card(model_path(args.model or default_model(name)))
+        # clips the model trained on (train --unlabelled) are left out, as --unseen leaves them out
+        clips = unseen.neutral_clips(leave_out=tuple(card["training"].get("clips", {}).get("unlabelled", [])))
+        reports[name] = {"clips": len(clips), **posture.evaluate(stylize, card["styles"], clips, shifts)}
+        print(f"{name} ({len(clips)} clips): " + posture.format_table(name, reports[name]).split(": ", 1)[1])
     path = out / "posture.json"
-    settings = {"alpha": args.alpha, "clips": len(clips), **({"foot_lock": False} if args.no_foot_lock else {})}
+    settings = {"alpha": args.alpha, **({"foot_lock": False} if args.no_foot_lock else {})}
     path.write_text(json.dumps({"settings": settings, "bandai_shifts": shifts, **reports}, indent=1) + "\n")
     print(f"wrote {path}")
     return 0

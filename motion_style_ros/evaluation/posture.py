@@ -7,7 +7,7 @@ as a mean and a 10th percentile over both legs and every frame. An output into t
 should keep the input's; an output into another style may move as far as that style moves real
 performers, which :func:`style_shifts` measures on the Bandai test takes (each style's mean
 against ``normal``'s, content by content). The floor check is how far the output's planted ankles
-rest from the input's: the low percentile of each one's ankle heights.
+rest from the input's (:func:`~motion_style_ros.core.conform.planted_ankle_height`).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from motion_style_ros.core.conform import PLANTED_PERCENTILE
+from motion_style_ros.core.conform import planted_ankle_height
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.evaluation import metrics
 
@@ -47,20 +47,13 @@ def posture(motion: Motion) -> dict[str, float]:
     return out
 
 
-def floor_height(motion: Motion) -> float:
-    """Where the planted ankles rest (m): the low percentile of both ankles' heights."""
-    sk = motion.skeleton
-    ankles = motion.global_positions()[:, [sk.index("Foot_L"), sk.index("Foot_R")], 1]
-    return float(np.percentile(ankles, PLANTED_PERCENTILE))
-
-
 def compare(source: Motion, output: Motion) -> dict[str, float]:
     """One output against its source: each posture figure's shift (output minus input, degrees),
     the floor's offset (cm) and the foot skating ratio."""
     before, after = posture(source), posture(output)
     skate_in = metrics.foot_skating(source)
     row = {f"{k}_shift": after[k] - before[k] for k in before}
-    row["floor_offset_cm"] = 100.0 * (floor_height(output) - floor_height(source))
+    row["floor_offset_cm"] = 100.0 * (planted_ankle_height(output) - planted_ankle_height(source))
     row["foot_skating_ratio"] = metrics.foot_skating(output) / skate_in if skate_in > 0 else float("nan")
     return row
 

@@ -76,9 +76,8 @@ class MostStep(OverlapWindows):
         self._full = np.ones((performers, 1), dtype=np.float32)
 
     def run_window(self, style: np.ndarray) -> np.ndarray:
-        target = np.einsum("ps,pskcd->pkcd", style.astype(np.float64), self.current_codes())
-        return self.model.run(features=self._history, style=target[:, 0].astype(np.float32),
-                              pooled=target[:, 1].astype(np.float32),
+        target = self.mixed_codes(style)
+        return self.model.run(features=self._history, style=target[:, 0], pooled=target[:, 1],
                               alpha=self._full)["output"]
 
 

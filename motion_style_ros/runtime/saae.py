@@ -99,10 +99,9 @@ class SaaeStep(OverlapWindows):
 
     def run_window(self, style: np.ndarray) -> np.ndarray:
         """The window encoded to its content code and decoded with the style input."""
-        code = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes()).astype(np.float32)
         features = self._history
         content = self.encoder.run(features=features)["content"]
-        out = self.decoder.run(content=content, style=code,
+        out = self.decoder.run(content=content, style=self.mixed_codes(style),
                                position=_positions(features.shape[1], self.trained_window, len(features)))["output"]
         return out
 

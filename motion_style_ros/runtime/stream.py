@@ -327,11 +327,11 @@ class StreamSession:
         self._origin, self._ticks = 0.0, 0  # model frame k is at stream time origin + k / fps
         self._input: tuple[np.ndarray, np.ndarray] | None = None
         self._outputs: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last three model frames
-        self._segment: Hermite | None = None  # the curve between the last two, made when first needed
-        # the raw input frames the last three model frames were made from, their curve, the
-        # input frames that came in over the latency, and the intensities of the last model frame
+        # the raw input frames the last three model frames were made from, the Hermite curves
+        # between the last two of each (made when first needed), the input frames that came in
+        # over the latency, and the intensities of the last model frame
         self._inputs: list[tuple[float, np.ndarray, np.ndarray]] = []
-        self._input_segment: Hermite | None = None
+        self._segments: dict[bool, Hermite] = {}  # by inputs (True) or outputs (False)
         self._frames: list[tuple[float, np.ndarray, np.ndarray]] = []
         self._keep = int(np.ceil(self.latency * self.input_fps)) + 2
         self._intensity = np.ones((self.performers, len(PARTS)))
@@ -444,30 +444,32 @@ class StreamSession:
             q, p = self._rolls.undo(q), self._scale.to_stream(p)
         self._outputs = [*self._outputs[-2:], (t, q, p)]
         self._inputs = [*self._inputs[-2:], (t, self._ring_q[:, 0].copy(), self._ring_p[:, 0].copy())]
-        self._segment = self._input_segment = None
+        self._segments.clear()
 
     def _output(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The output at stream time ``t``: the model's, between its last two frames (held
         outside), with what that interpolation misses of the input frame at ``t`` where the
         intensity is below 1 (see the module docstring)."""
-        q, p = self._curve(self._outputs, "_segment", t)
+        q, p = self._curve(False, t)
         if (self._intensity >= 1.0).all():
             return q, p
-        q_curve, p_curve = self._curve(self._inputs, "_input_segment", t)
+        q_curve, p_curve = self._curve(True, t)
         q_in, p_in = self._input_at(t)
         keep = 1.0 - self._intensity
         missed = rot.multiply(rot.conjugate(q_curve), q_in)
         q = rot.multiply(q, toward(_IDENTITY, missed, keep[:, self._part]))
         return q, p + keep[:, _LEGS, None] * (p_in - p_curve)
 
-    def _curve(self, frames: list, segment: str, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """``frames`` (three model frames) at ``t`` by their Hermite curve, kept in ``segment``."""
+    def _curve(self, inputs: bool, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The last model frames' ``_inputs`` (or ``_outputs``) at ``t`` by the Hermite curve of
+        their last two, made once per model frame (held past the last)."""
+        frames = self._inputs if inputs else self._outputs
         t1, q1, p1 = frames[-1]
         if len(frames) == 1 or t >= t1 - STAMP_TOLERANCE:
             return q1.copy(), p1.copy()  # the caller may write into what it gets
-        if getattr(self, segment) is None:
-            setattr(self, segment, Hermite(frames))
-        return getattr(self, segment)(t)
+        if inputs not in self._segments:
+            self._segments[inputs] = Hermite(frames)
+        return self._segments[inputs](t)
 
     def _input_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The raw input at stream time ``t``: the frame within a quarter of a frame of it (stamps

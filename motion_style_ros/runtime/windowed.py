@@ -178,6 +178,10 @@ class OverlapWindows:
         return Stylized(blocks, self._history[every, due - n - 1], self._ankles[every, slot],
                         self._lifts[every, slot])
 
+    def mixed_codes(self, style: np.ndarray) -> np.ndarray:
+        """``(P, ...)`` float32: each performer's codes mixed by its style weights ``(P, S)``."""
+        return np.einsum("ps,ps...->p...", style.astype(np.float64), self.current_codes()).astype(np.float32)
+
     def current_codes(self) -> np.ndarray:
         """``(P, S, ...)``: every performer's codes as they are now (mid-blend included)."""
         w = smoothstep(self._code_progress).reshape(-1, *(1,) * (self._codes_to.ndim - 1))
@@ -226,8 +230,7 @@ class WindowedStep(OverlapWindows):
         self._start_codes(performers, blend_seconds, self.seed_codes(self._seed))
 
     def run_window(self, style: np.ndarray) -> np.ndarray:
-        code = np.einsum("ps,psd->pd", style.astype(np.float64), self.current_codes())
-        return self.model.run(features=self._history, code=code.astype(np.float32))["output"]
+        return self.model.run(features=self._history, code=self.mixed_codes(style))["output"]
 
     # --- codes --------------------------------------------------------------------------------
 
@@ -244,7 +247,6 @@ class WindowedStep(OverlapWindows):
         z = np.repeat(np.stack([latent(seed, size) for seed in seeds]), n, axis=0).astype(np.float32)
         style = np.tile(np.eye(n, dtype=np.float32), (len(seeds), 1))
         return self.mapping.run(z=z, style=style)["code"].astype(np.float64).reshape(len(seeds), n, -1)
-
 
 
 class WindowsSession(StreamSession):
