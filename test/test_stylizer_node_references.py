@@ -14,6 +14,7 @@ import pytest
 torch = pytest.importorskip("torch", reason="random-weight MoST and SAAE models: pip install '.[train]'")
 
 import ros_helpers
+from bad_files import unretargetable_clip, unusable_clips
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.parameter import Parameter
@@ -22,7 +23,6 @@ from ros_helpers import Listener, message, replay, stamps, start_node, stop
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.core.synthetic import synthetic_motion
-from motion_style_ros.io import bvh
 from motion_style_ros.io.canonical import canonical_clip
 from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.runtime import stylizer_settings
@@ -180,16 +180,12 @@ def test_the_target_style_changes_live_and_an_unknown_one_is_refused(node, backe
 
 
 def test_bad_reference_clips_are_refused_with_their_reason(node, tmp_path):
-    """As for stgcn (test_stylizer_node_stgcn: 'cannot read', 'too short'), and a file that is no
-    BVH; the short clip's reason gives this model's window."""
-    short = tmp_path / "short.bvh"
-    bvh.write(short, bvh.BvhClip.from_motion(synthetic_motion("walk", FPS, 0.5), scale=100.0))
-    notes = tmp_path / "notes.bvh"
-    notes.write_text("not a motion\n")
-    for path, reason in ((tmp_path / "missing.bvh", "cannot read"), (notes, "not a BVH file"),
-                         (short, "too short: 0.50 s; it needs at least 0.5 s (16 frames at 30 fps)")):
-        (result,) = node.set_parameters(reference=str(path))
-        assert not result.successful and reason in result.reason, result.reason
+    """As for stgcn (test_stylizer_node_stgcn); the short clip's reason gives this model's window."""
+    for path, reason in unusable_clips(tmp_path, FPS):
+        if reason == "too short":
+            reason = "too short: 0.50 s; it needs at least 0.5 s (16 frames at 30 fps)"
+        (result,) = node.set_parameters(reference=path)
+        assert not result.successful and reason in result.reason, (path, result.reason)
     assert node.parameter("reference").string_value == ""
     assert node.proc.poll() is None
 
@@ -241,11 +237,10 @@ def test_emptying_the_reference_goes_back_to_the_styles_own(node, backend, model
 
 
 def test_a_clip_the_worker_cannot_use_is_reported_and_the_reference_goes_back(node, tmp_path):
-    """The header looks right, so the set is accepted at once; the worker thread then finds the
-    body broken, logs why (naming what '' means here: no latent seed) and sets ``reference`` back."""
-    broken = tmp_path / "broken.bvh"
-    broken.write_text("HIERARCHY\nROOT Hips\n{\n}\nMOTION\nFrames: 100\nFrame Time: 0.0333333\n1 2 x\n")
-    request = SetParameters.Request(parameters=[Parameter("reference", value=str(broken)).to_parameter_msg()])
+    """A well-formed BVH, so the set is accepted at once; the worker thread then finds it is no
+    humanoid, logs why (naming what '' means here: no latent seed) and sets ``reference`` back."""
+    broken = unretargetable_clip(tmp_path)
+    request = SetParameters.Request(parameters=[Parameter("reference", value=broken).to_parameter_msg()])
     client = node.listener.node.create_client(SetParameters, "/stylizer/set_parameters")
     (result,) = node.listener.call(client, request, procs=[node.proc]).results
     assert result.successful, result.reason

@@ -8,16 +8,16 @@ outputs are checked against an offline :class:`WindowedSession` fed the same fra
 import numpy as np
 import pytest
 import ros_helpers
+from bad_files import unretargetable_clip, unusable_clips
 from onnx_fixtures import windowed_model
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers import Listener, message, replay, stamps, start_node, stop
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.core.synthetic import synthetic_motion
-from motion_style_ros.io import bvh
 from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.io.canonical import canonical_clip
 from motion_style_ros.runtime.windowed import WindowedSession
@@ -108,12 +108,9 @@ def test_frames_are_stylized_as_offline_and_the_seed_changes_live(node, model, f
 
 def test_reference_clips_are_read_checked_and_used(node, model, frames, datasets, tmp_path):
     send, set_parameters, got, proc = node
-    short = tmp_path / "short.bvh"
-    walk = synthetic_motion("walk", FPS, 0.5)
-    bvh.write(short, bvh.BvhClip.from_motion(walk, scale=100.0))
-    for path, reason in ((tmp_path / "missing.bvh", "cannot read"), (short, "too short")):
-        (result,) = set_parameters(reference=str(path))
-        assert not result.successful and reason in result.reason, result.reason
+    for path, reason in unusable_clips(tmp_path, FPS):  # refused at once, never opened if no file
+        (result,) = set_parameters(reference=path)
+        assert not result.successful and reason in result.reason, (path, result.reason)
     # (~/set_parameters applies its parameters one by one, each through the node's callback)
     for change in ({"target_style": "elderly"}, {"reference": str(datasets / REFERENCE)}):
         (result,) = set_parameters(**change)
@@ -194,11 +191,11 @@ def test_an_enrolled_style_of_the_style_bank_is_a_target_style(model, ros_env, d
 
 
 def test_a_clip_the_worker_cannot_use_is_reported_and_the_reference_goes_back(node, tmp_path):
-    """The header looks right, so the set is accepted at once; the worker thread then finds the
-    body broken, logs why, and sets ``reference`` back to the clip in use."""
+    """The file is a well-formed BVH, so the set is accepted at once; the worker thread then finds
+    it is no humanoid, logs why, sets ``reference`` back to the clip in use and says so on
+    /diagnostics."""
     _, set_parameters, _, proc = node
-    broken = tmp_path / "broken.bvh"
-    broken.write_text("HIERARCHY\nROOT Hips\n{\n}\nMOTION\nFrames: 100\nFrame Time: 0.0333333\n1 2 x\n")
+    broken = unretargetable_clip(tmp_path)
     listener, diagnostics = set_parameters.listener, set_parameters.diagnostics
     diagnostics.clear()
     listener.spin_until(lambda: diagnostics, "a status", procs=[proc])
@@ -215,4 +212,6 @@ def test_a_clip_the_worker_cannot_use_is_reported_and_the_reference_goes_back(no
     diagnostics.clear()
     listener.spin_for(1.5)
     assert {kv.key: kv.value for kv in diagnostics[-1].status[0].values}["reference"] == before
+    (warning,) = [status for status in diagnostics[-1].status if status.name == "stylizer: reference"]
+    assert warning.level == DiagnosticStatus.WARN and "not a humanoid skeleton" in warning.message, warning
     assert proc.poll() is None

@@ -18,6 +18,7 @@ from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.skeleton import Skeleton
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import files
 
 _POSITION = ("Xposition", "Yposition", "Zposition")
 _ROTATION = ("Xrotation", "Yrotation", "Zrotation")
@@ -139,9 +140,9 @@ def read(path: str | Path) -> BvhClip:
     """Read a BVH file; raises :class:`BvhError` naming the file and the problem."""
     path = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError as e:
-        raise BvhError(f"{path}: cannot read ({e.strerror or e})") from None
+        text = files.read_text(path, "bvh")
+    except MotionStyleError as e:
+        raise BvhError(str(e)) from None
     head, sep, body = text.partition("MOTION")
     if not sep:
         raise BvhError(f"{path}: no MOTION section (not a BVH file, or truncated)")
@@ -283,10 +284,7 @@ def write(path: str | Path, clip: BvhClip, precision: int | None = None) -> None
 def duration(path: str | Path) -> tuple[int, float]:
     """``(frames, frame time in s)`` from the header alone (a quick check before a full read),
     or a one-line :class:`MotionStyleError`."""
-    try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise MotionStyleError(f"{path}: cannot read ({e.strerror or e})") from None
+    data = files.read_bytes(path, "bvh")
     _, sep, body = data.partition(b"MOTION")
     m = re.match(rb"\s*Frames:\s*([0-9+-]+)\s+Frame\s+Time:\s*(\S+)", body) if sep else None
     try:
@@ -295,25 +293,26 @@ def duration(path: str | Path) -> tuple[int, float]:
         raise MotionStyleError(f"{path}: not a BVH file (no 'Frames:' and 'Frame Time:' after MOTION)") from None
 
 
-def check(path: Path, joints: tuple[str, ...]) -> str | None:
+def check(path: Path, joints: tuple[str, ...] | None = None) -> str | None:
     """The first problem :func:`read` would report, found without converting the numbers.
 
-    For indexing thousands of files quickly; ``joints`` are the expected joint names in order.
+    For indexing thousands of files quickly, and for checking a file a user names before it is
+    read; ``joints`` are the expected joint names in order (None: any).
 
     Checks the joint names, the frame count, non-numeric text (NaN, inf, garbage) and the number of
     values, in about 0.2 ms per file; :func:`read` at load time re-checks everything.
     """
     try:
-        data = path.read_bytes()
-    except OSError as e:
-        return f"cannot read ({e.strerror or e})"
+        data = files.read_bytes(path, "bvh")
+    except MotionStyleError as e:
+        return str(e).removeprefix(f"{path}: ")
     head, sep, body = data.partition(b"MOTION")
     if not sep or not head.lstrip().startswith(b"HIERARCHY"):
         return "not a BVH file (no HIERARCHY and MOTION sections), or truncated"
     if head.count(b"{") != head.count(b"}"):
         return "hierarchy braces do not match (malformed or truncated header)"
     names = tuple(n.decode(errors="replace") for n in re.findall(rb"\b(?:ROOT|JOINT)\s+(\S+)", head))
-    if names != joints:
+    if joints is not None and names != joints:
         return f"joints {_first_difference(names, joints)}; not the expected {len(joints)}-joint skeleton"
     m = re.match(rb"\s*Frames:\s*([0-9+-]+)\s+Frame\s+Time:\s*(\S+)", body)
     try:

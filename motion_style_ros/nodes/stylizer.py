@@ -197,6 +197,10 @@ class StylizerBase(Parameters):
                 level=LEVELS[level], name=f"{self.get_name()}: {p.input}", message=message,
                 hardware_id=p.stream.session.model.path.name,
                 values=[KeyValue(key=k, value=str(v)) for k, v in values.items()]))
+        if self.references.failure:  # the last clip asked for could not be used (its set was undone)
+            array.status.append(DiagnosticStatus(
+                level=DiagnosticStatus.WARN, name=f"{self.get_name()}: reference",
+                message=f"reference clip unusable: {self.references.failure}"))
         array.header.stamp = self.get_clock().now().to_msg()
         self._diagnostics.publish(array)
 

@@ -1,11 +1,14 @@
 """Reference clips for a live node, read off the thread that streams (no ROS here).
 
-Setting the ``reference`` parameter must not stall the streams: a clip is checked at once from
-its header (:meth:`References.check`: a readable BVH file, long enough), then read, retargeted and
-encoded on a worker thread (:meth:`References.load`). When it is ready, the change it belongs to
-is queued for the streams' thread, which applies it before its next frame; a clip that turns out
-unusable queues a revert to the clip in use instead, with its one-line reason. A clip asked for
-after another makes the earlier one's result stale: only the newest one is applied.
+Setting the ``reference`` parameter must not stall the streams: a clip is checked at once
+(:meth:`References.check`: a regular file within the BVH size limit, never opened if it is not;
+a BVH whose header, frame count and numbers hold; long enough), so that ``ros2 param set`` fails
+with the reason; then it is read, retargeted and encoded on a worker thread
+(:meth:`References.load`). When it is ready, the change it belongs to is queued for the streams'
+thread, which applies it before its next frame; a clip that turns out unusable queues a revert to
+the clip in use instead, with its one-line reason (kept in :attr:`References.failure` for the
+diagnostics). A clip asked for after another makes the earlier one's result stale: only the newest
+one is applied.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Callable
+from pathlib import Path
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh
@@ -33,9 +37,12 @@ class References:
         self.empty = empty
         self.staged: dict[str, tuple] = {}  # clip path -> its codes and logits, once read
         self._loads = 0  # loads started; a newer one makes an older one's result stale
+        self.failure: str | None = None  # why the last clip asked for could not be used, until one is
 
     def check(self, path: str) -> None:
         """What can be known of a clip at once, or a one-line reason it cannot serve."""
+        if problem := bvh.check(Path(path)):
+            raise MotionStyleError(f"{path}: {problem}")
         frames, frame_time = bvh.duration(path)
         s = self.session
         if frames * frame_time * s.fps < s.window:
@@ -59,9 +66,11 @@ class References:
         try:
             self.staged[path] = self.read(path)
         except MotionStyleError as exc:
+            self.failure = f"{' '.join(str(exc).split())}; kept {previous or self.empty!r}"
             self.log_error(f"parameter reference: {' '.join(str(exc).split())}; keeping "
                            f"{previous or self.empty!r}")
             self.pending.append({REVERT: previous})
             return
+        self.failure = None
         if load == self._loads:  # else a newer clip was asked for meanwhile
             self.pending.append(changes)
