@@ -46,3 +46,24 @@ def test_a_file_over_its_kinds_limit_is_refused_and_the_limit_can_be_raised(tmp_
     monkeypatch.setenv("MOTION_STYLE_MAX_LAYOUT_MB", "lots")
     with pytest.raises(MotionStyleError, match="MOTION_STYLE_MAX_LAYOUT_MB='lots' is not a number"):
         files.read_text(small, "layout")
+
+
+def _readers():
+    from motion_style_ros.io import bvh, urdf
+    from motion_style_ros.io.joint_state import JointStateLayout
+    from motion_style_ros.runtime import onnx_model, robot_target, style_bank
+
+    return {"bvh": bvh.read, "bvh header": bvh.duration, "model": onnx_model.model_path,
+            "style bank": style_bank._load, "layout": JointStateLayout.from_yaml,
+            "body map": robot_target.load_map, "urdf": urdf.read}
+
+
+@pytest.mark.parametrize("reader", sorted(_readers()))
+@pytest.mark.parametrize("special", ["/dev/zero", "fifo", "directory"])
+def test_every_reader_of_a_user_named_file_refuses_what_is_not_a_regular_file(reader, special, tmp_path):
+    path = {"/dev/zero": "/dev/zero", "fifo": str(tmp_path / "fifo"), "directory": str(tmp_path)}[special]
+    if special == "fifo":
+        os.mkfifo(path)
+    with pytest.raises(MotionStyleError, match="must be a regular file") as exc:
+        _readers()[reader](path)
+    assert "\n" not in str(exc.value)

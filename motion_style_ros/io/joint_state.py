@@ -43,6 +43,7 @@ from motion_style_ros.core import kernels
 from motion_style_ros.core.retarget import tpose
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import files
 
 AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 # Core (x, y, z) -> ROS (z, x, y): row i of C picks the core axis that becomes ROS axis i.
@@ -169,11 +170,9 @@ class JointStateLayout:
             return MotionStyleError(f"{path}: {problem}")
 
         try:
-            data = YAML(typ="safe").load(path.read_text(encoding="utf-8"))
+            data = YAML(typ="safe").load(files.read_bytes(path, "layout").decode("utf-8"))
         except UnicodeDecodeError:
             raise bad("not a text file (a layout is YAML)") from None
-        except OSError as exc:
-            raise bad(exc.strerror or str(exc)) from None
         except YAMLError as exc:
             raise bad(f"not valid YAML ({' '.join(str(exc).split())})") from None
         if not isinstance(data, dict) or not isinstance(data.get("joints"), list) or not data["joints"]:

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import files
 
 
 @dataclass
@@ -71,8 +72,9 @@ def read(path: str | Path) -> RobotModel:
     import yourdfpy
 
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise MotionStyleError(f"{path}: no such URDF file")
+    files.check(path, "urdf")
     log = logging.getLogger("yourdfpy")
     level = log.level
     log.setLevel(logging.CRITICAL)  # it logs a parse error as it retries; the one it raises is ours

@@ -34,6 +34,7 @@ import numpy as np
 from motion_style_ros.core.features import encode
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import files
 from motion_style_ros.runtime import style_bank
 from motion_style_ros.runtime.contract import MOST, MOST_STYLE, check_card
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path
@@ -86,7 +87,7 @@ def _read_means(path: Path, styles: int, shape: tuple[int, int]) -> np.ndarray:
     one-line reason why they cannot be read."""
     if not path.is_file():
         raise MotionStyleError(f"{path}: the styles' mean features are missing (they ship beside the model)")
-    with np.load(path, allow_pickle=False) as npz:
+    with np.load(files.check(path, "arrays"), allow_pickle=False) as npz:
         if {"style", "pooled"} - set(npz.files):
             raise MotionStyleError(f"{path}: expected arrays 'style' and 'pooled', found {', '.join(npz.files)}")
         means = np.stack([npz["style"], npz["pooled"]], axis=1).astype(np.float64)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import files
 
 PACKAGE = "motion_style_ros"
 
@@ -27,22 +28,20 @@ def model_path(name: str) -> Path:
     path = Path(name)
     if not path.is_file() and path.parent == Path("."):
         path = models_dir() / name
-    if not path.is_file():
+    if not path.exists():
         raise MotionStyleError(f"{path}: model file not found")
-    return path
+    return files.check(path, "model")
 
 
 def read_card(model: Path) -> dict:
     """The JSON model card next to a model (``x.onnx`` -> ``x.json``)."""
     card = Path(model).with_suffix(".json")
+    if not card.exists():
+        raise MotionStyleError(f"{card}: model card not found (it ships beside {Path(model).name})")
     try:
-        return json.loads(card.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MotionStyleError(f"{card}: model card not found (it ships beside {Path(model).name})") from None
+        return json.loads(files.read_bytes(card, "card").decode("utf-8"))
     except UnicodeDecodeError:
         raise MotionStyleError(f"{card}: not a text file (a model card is JSON)") from None
-    except OSError as exc:
-        raise MotionStyleError(f"{card}: {exc.strerror or exc}") from None
     except json.JSONDecodeError as exc:
         raise MotionStyleError(f"{card}: not valid JSON ({exc})") from None
 

@@ -82,6 +82,7 @@ from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.motion import Motion, forward_kinematics
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import files
 from motion_style_ros.io.urdf import RobotModel, read
 
 ACTUATED = ("revolute", "continuous", "prismatic")
@@ -289,8 +290,8 @@ def load_map(path: str | Path) -> dict[str, str]:
 
     path = Path(path)
     try:
-        data = YAML(typ="safe").load(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
+        data = YAML(typ="safe").load(files.read_bytes(path, "body map").decode("utf-8"))
+    except UnicodeDecodeError as exc:
         raise MotionStyleError(f"{path}: cannot read the body map ({exc})") from None
     except YAMLError as exc:
         raise MotionStyleError(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.io import files
 
 VERSION = 1
 MIX = "mix"  # the head of an entry made from every head's code
@@ -51,11 +52,11 @@ def path_beside(model: Path) -> Path:
     return model.with_name(f"{model.stem}_styles.json")
 
 
-def digest(files: list[Path]) -> str:
+def digest(models: list[Path]) -> str:
     """A short digest of the model files whose codes a bank holds."""
     h = hashlib.sha256()
-    for f in files:
-        h.update(f.read_bytes())
+    for f in models:
+        h.update(files.read_bytes(f, "model"))
     return h.hexdigest()[:16]
 
 
@@ -94,11 +95,11 @@ def read(path: Path, model_digest: str, style_dim: int, styles: list[str],
 
 def _load(path: Path) -> dict:
     """A bank file's JSON, checked to be a bank of this version, or a one-line reason."""
+    if not Path(path).exists():
+        raise MotionStyleError(f"{path}: no such style bank")
     try:
-        raw = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MotionStyleError(f"{path}: no such style bank") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raw = json.loads(files.read_bytes(path, "style bank").decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise MotionStyleError(f"{path}: not a style bank ({type(exc).__name__})") from None
     if not isinstance(raw, dict) or raw.get("version") != VERSION or not isinstance(raw.get("styles"), dict):
         raise MotionStyleError(f"{path}: not a version-{VERSION} style bank")
