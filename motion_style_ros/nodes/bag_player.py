@@ -3,6 +3,10 @@
 For machines without the ``ros2`` CLI (``ros2 bag play`` does the same elsewhere). Messages are
 republished as recorded (serialised bytes, so header.stamp is kept); the gaps between them follow the
 recording's log times divided by ``rate``.
+
+Every message is checked before any is played (it deserialises as a JointState with a position per
+name, all finite). A damaged bag stops the node with one line (exit 2); ``skip_damaged:=true`` plays
+its readable messages instead and logs how many it skipped.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.io.bags import read_raw
+from motion_style_ros.io.bags import DamagedBag, read_checked
 from motion_style_ros.nodes import PlayerNode, run
 
 NAME = "bag_player"
@@ -31,9 +35,21 @@ class BagPlayer(PlayerNode):
                                         "empty: each on its recorded topic")
         self.wait = self.param("wait_for_subscribers", 0, "hold playback until this many subscribers "
                                "are matched on every topic (start the consumers first)", 0, 1000)
+        skip_damaged = self.param("skip_damaged", False, "play the readable messages of a damaged bag "
+                                  "(saying how many were skipped) instead of refusing it")
         if not bag:
             raise MotionStyleError("parameter bag is empty; give a bag: --ros-args -p bag:=my_bag")
-        self.messages = list(read_raw(bag))
+        try:
+            contents = read_checked(bag, skip_damaged=skip_damaged)
+        except DamagedBag as exc:
+            if skip_damaged:
+                raise
+            raise MotionStyleError(f"{exc}; skip_damaged:=true plays its readable part") from None
+        if contents.damage:
+            skipped = "an unknown number of" if contents.skipped is None else str(contents.skipped)
+            self.get_logger().warning(f"{bag}: {contents.damage}; playing its {len(contents.messages)} "
+                                      f"readable messages, {skipped} skipped")
+        self.messages = [(t, log, data) for t, log, data, _ in contents.messages]
         if not self.messages:
             raise MotionStyleError(f"{bag}: its JointState topics hold no messages; nothing to play")
         topics = sorted({t for t, _, _ in self.messages})
