@@ -2,7 +2,8 @@
 over core, io and runtime.
 
 Every node's ``main`` goes through :func:`run`, so a node that cannot start (bad file, bad
-parameter) logs one error line and exits with status 2, and Ctrl-C ends it cleanly.
+parameter) logs one error line and exits with status 2, and Ctrl-C (SIGINT) or SIGTERM ends it
+cleanly with status 0.
 """
 
 from __future__ import annotations
@@ -12,8 +13,10 @@ import gc
 import inspect
 import os
 import re
+import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -24,6 +27,7 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 
@@ -150,7 +154,10 @@ def _init(args) -> None:
     with tempfile.TemporaryFile() as held:
         os.dup2(held.fileno(), 2)
         try:
-            rclpy.init(args=args)
+            # No rclpy signal handlers: they shut the context down from inside the signal, while a
+            # callback may still publish and the node's own teardown still logs (rosout), which
+            # then fail ("publisher's context is invalid"). run() installs its own (_Stop).
+            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         except RCLError:
             raise
         else:
@@ -166,15 +173,57 @@ def _one_line(exc: Exception) -> str:
     return re.sub(r",? at /\S+:\d+", "", " ".join(str(exc).split()))
 
 
+class _Stop:
+    """SIGINT and SIGTERM handlers for :func:`run`, restored on exit. Once the node spins, a signal
+    only asks the loop to stop: the callback in progress finishes, the node is destroyed (its
+    teardown may still log and publish, a recorder closes its bag) and only then is the context
+    shut down. Before that (the node still being built) and on a second signal, it interrupts at
+    once (KeyboardInterrupt)."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.requested = False
+        self.started = False
+        self._previous = {}
+
+    def __enter__(self) -> _Stop:
+        if threading.current_thread() is not threading.main_thread():
+            return self  # signal handlers belong to the main thread: a node run elsewhere has none
+        for number in self.SIGNALS:
+            self._previous[number] = signal.signal(number, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for number, previous in self._previous.items():
+            signal.signal(number, previous)
+
+    def _handle(self, number, frame) -> None:
+        if self.started and not self.requested:
+            self.requested = True
+            return
+        self.requested = True
+        raise KeyboardInterrupt
+
+
 def run(make_node: Callable[[], Node], name: str, args=None) -> int:
     """Init, build the node (``name`` is its default node name, for the log before it exists), spin
-    until it is done or interrupted; 2 when it cannot start (bad ROS arguments or parameter files
-    included: rclpy.init's error; a topic name rcl refuses)."""
+    until it is done or interrupted (SIGINT or SIGTERM: exit 0 once the node is torn down); 2 when
+    it cannot start (bad ROS arguments or parameter files included: rclpy.init's error; a topic name
+    rcl refuses)."""
+    with _Stop() as stop:
+        return _run(make_node, name, args, stop)
+
+
+def _run(make_node: Callable[[], Node], name: str, args, stop: _Stop) -> int:
     try:
         _init(args)
     except RCLError as exc:
         rclpy.logging.get_logger(name).error(f"cannot start: {_one_line(exc)}")
         return 2
+    except KeyboardInterrupt:
+        rclpy.try_shutdown()
+        return 0
     node = None
     try:
         node = make_node()
@@ -185,7 +234,8 @@ def run(make_node: Callable[[], Node], name: str, args=None) -> int:
         gc.freeze()
         spinner = executor()
         spinner.add_node(node)
-        while node.context.ok() and not node.done.done():
+        stop.started = True
+        while not stop.requested and node.context.ok() and not node.done.done():
             spinner.spin_once(timeout_sec=SPIN_SECONDS)
     except (MotionStyleError, ParameterException, NameValidationException, RCLError,
             UnicodeDecodeError) as exc:
