@@ -112,12 +112,14 @@ def bad_inputs(k):
          {"conversion_errors": 1}, []),
         ("a frame of quaternions 1000 long", [bundle(frame(k, bones=scaled), k)], {}, [k]),
         ("a frame with a far-future time tag", [bundle(frame(k), k, timetag=b"\xff" * 8)], {}, [k]),
-        ("a flood of one bone", flood, {}, [None] * (FLOOD - 1)),  # a frame each (the last may wait)
+        # A frame each while the bridge keeps up (the sender's pattern); what waits longer than
+        # the receiver's live bound gives way to the newest (io.vmc.VmcReceiver).
+        ("a flood of one bone", flood, {}, [None]),
     ]
 
 
 def test_no_bad_datagram_stops_or_poisons_the_stream(bridge):
-    got, blends = [], []  # deep queues: a flood of one bone comes out as a flood of states
+    got, blends = [], []  # deep queues: a flood of one bone may come out as a flood of states
     bridge.node.create_subscription(JointState, "joint_states", got.append, BEST_EFFORT)
     bridge.node.create_subscription(JointState, "blendshapes", blends.append, BEST_EFFORT)
     bridge.exchange(lambda: bridge.sender.send_packet(vmc.Packet(bundle(frame(0), 0))), got, "frame 0")

@@ -99,7 +99,7 @@ def test_assembler_frames_from_bundles_and_time_messages():
     got = asm.feed_datagram(message(vmc.TIME_ADDRESS, 1.0))
     assert len(got) == 1
     np.testing.assert_allclose(got[0].bones["LeftHand"][1], frames[1].bones["LeftHand"][1], atol=1e-6)
-    assert asm.counts == {"frames": 2, "malformed": 0, "incomplete": 0, "ignored": 0}
+    assert asm.counts == {"frames": 2, "malformed": 0, "incomplete": 0, "ignored": 0, "repeated": 0}
 
 
 def test_missing_bones_complete_from_last_pose_and_incomplete_start_is_dropped():
@@ -497,28 +497,47 @@ def test_sender_clock_keeps_the_senders_rhythm_and_falls_back_on_arrival():
     assert clock.stamp(60.0, base) == base + 12 * 10**9 + 1
 
 
-def test_a_burst_of_datagrams_is_read_without_kernel_drops(sent):
+@pytest.mark.parametrize("max_age", [60.0, vmc.MAX_AGE_S])
+def test_a_burst_of_datagrams_is_read_without_kernel_drops(sent, max_age):
     """One second of a message-per-bundle sender at 60 Hz (about 110 datagrams a frame) sent at
-    once, while the frame callback takes its time: every datagram is read, every frame made."""
+    once, while the frame callback takes its time: every datagram is read. With time to spare
+    every frame is made; at the live bound, what waited too long is dropped (counted), what is
+    made is whole poses of the stream in order, and the frame sent after the burst is shown."""
     import time
 
-    frames = (sent * 5)[:60]
-    datagrams = [_bundle([x]) for k, f in enumerate(frames) for x in _messages(f, k / 60)]
+    frames = (sent * 6)[:61]
+    datagrams = [[_bundle([x]) for x in _messages(f, k / 60)] for k, f in enumerate(frames)]
     got = []
-    receiver = vmc.VmcReceiver(lambda f: (got.append(f), time.sleep(0.002)), port=0).start()
+    receiver = vmc.VmcReceiver(lambda f: (got.append(f), time.sleep(0.002)), port=0, max_age=max_age).start()
+
+    def quiet():
+        before = -1
+        while before != (now := (len(got), receiver.counts["stale"], receiver.counts["superseded"])):
+            before = now
+            time.sleep(0.3)
+
     try:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as raw:
-            for d in datagrams:
+            for d in sum(datagrams[:60], []):
                 raw.sendto(d, receiver.address)
-        deadline = time.monotonic() + 60
-        while len(got) < len(frames) and time.monotonic() < deadline:
-            time.sleep(0.01)
+            quiet()
+            burst = len(got)
+            for d in datagrams[60]:  # the sender's next frame, in its time
+                raw.sendto(d, receiver.address)
+            quiet()
     finally:
         receiver.close()
     counts = receiver.counts
-    assert counts["kernel_dropped"] == 0
-    assert counts["datagrams"] == len(datagrams)
-    assert len(got) == len(frames)
+    assert counts["kernel_dropped"] == counts["overflow"] == 0
+    assert counts["datagrams"] == sum(map(len, datagrams))
+    if max_age > 1:
+        assert len(got) == len(frames) and counts["stale"] == counts["superseded"] == 0
+        return
+    assert (burst < 60) == (counts["stale"] + counts["superseded"] > 0), (burst, counts)
+    times = [round(f.time * 60) for f in got]
+    assert times == sorted(times) and times[-1] == 60  # the frame after the burst is shown
+    for g, k in zip(got, times):  # whole poses only: never one mixing frames from before and after a drop
+        assert all(np.array_equal(g.bones[b][0], p) for b, (p, _) in frames[k].bones.items()), k
 
 
 def test_fuzzed_streams_through_the_link_never_give_nan(sent):
@@ -611,3 +630,28 @@ def test_bone_messages_and_bundles_are_encoded_as_python_osc_encodes_them():
         builder.add_content(vmc.build_message(*(lambda x: (x.address, x.params))(
             osc_packet.OscPacket(m.dgram).messages[0].message)))
     assert vmc._bundle(messages).dgram == builder.build().dgram
+
+
+def test_one_datagram_of_one_bone_700_times_is_no_more_than_one_frame(sent):
+    """A key twice in one datagram is no sender's frame: the repeats are dropped and counted."""
+    asm = vmc.VmcFrameAssembler()
+    assert len(asm.feed_datagram(vmc.frame_bundle(sent[0], 0.0).dgram)) == 1
+    hand = [m for m in _messages(sent[1], 1 / 60) if m.params and m.params[0] == "LeftHand"]
+    got = asm.feed_datagram(_bundle(hand * 700))
+    got += asm.feed_datagram(vmc.frame_bundle(sent[2], 2 / 60).dgram)
+    assert len(got) <= 2 and asm.counts["repeated"] == 699
+    np.testing.assert_array_equal(got[-1].bones["Hips"][0], sent[2].bones["Hips"][0])
+
+
+def test_garbage_makes_the_assembler_learn_the_senders_pattern_again(sent):
+    per_frame = [_messages(f, k / 60) for k, f in enumerate(sent)]
+    asm = vmc.VmcFrameAssembler()
+    for m in per_frame[:3]:
+        for x in m:
+            asm.feed_datagram(_bundle([x]))
+    assert asm.last_key == ("time",)
+    asm.feed_datagram(b"\x00garbage")
+    assert asm.last_key is None and asm.first_key is None and asm.counts["malformed"] == 1
+    got = [f for m in per_frame[3:] for x in m for f in asm.feed_datagram(_bundle([x]))]
+    assert asm.last_key == ("time",)  # learnt again from the stream
+    _assert_frames_are_the_poses(got, sent[3:])

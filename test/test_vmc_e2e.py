@@ -188,7 +188,10 @@ def run_stream(sent, start, listener, bridge_port, out_port, middle, bundling):
         listener.spin_until(lambda: diagnostics and stamp_ns(diagnostics[-1]) > after
                             and bridge_status() is not None, "the bridge's counters", procs=procs)
         baseline = bridge_status()
-        assert baseline["frames"] == str(warm), (warm, baseline)
+        # Every warm-up frame made, or dropped as too old for a live stream while the bridge built
+        # the sender's rig on the first one (io.vmc.VmcReceiver: live means latest).
+        made, dropped = int(baseline["frames"]), int(baseline["stale"]) + int(baseline["superseded"])
+        assert made >= 1 and (made == warm or made + dropped >= warm), (warm, baseline)
         for topic in (states, stylized, blendshapes):
             topic.clear()
         marionette.frames.clear()

@@ -88,10 +88,11 @@ def add_parser(subparsers):
                             "performer against the longest gap between two inputs (the clip is read "
                             "off the streams' thread)")
     nodes.set_defaults(func=run_nodes)
-    from motion_style_ros.cli import faults, soak
+    from motion_style_ros.cli import faults, soak, vmc_flood
 
     soak.add_parser(targets)
     faults.add_parser(targets)
+    vmc_flood.add_parser(targets)
     recurrent.add_argument("--model", default=DEFAULT_MODEL,
                            help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
     nodes.add_argument("--model", default=None,

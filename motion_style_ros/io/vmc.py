@@ -31,9 +31,10 @@ import queue
 import socket
 import struct
 import threading
+import time
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pythonosc import osc_bundle, osc_message, osc_message_builder
@@ -62,6 +63,9 @@ OK_ADDRESS = "/VMC/Ext/OK"
 BLEND_ADDRESS = "/VMC/Ext/Blend/Val"
 APPLY_ADDRESS = "/VMC/Ext/Blend/Apply"
 RECEIVE_BUFFER = 4 * 1024 * 1024  # bytes of socket buffer asked for (the kernel may cap it: rmem_max)
+# A datagram that waited longer than this to be parsed is dropped: a live pose that old is stale.
+MAX_AGE_S = 0.25
+MAX_QUEUED_BYTES = 16 * 1024 * 1024  # datagrams read but not parsed, at most (then the newest are dropped)
 STALE_NS = 100_000_000  # an output whose frame is further than this from every kept one: counted
 # No performer sends a position (m), quaternion component, scale, offset or blendshape value beyond
 # this: such a value is a corrupt one (float32 still holds it: 1e30 passes every finiteness check).
@@ -215,6 +219,7 @@ class VmcFrame:
     ok: tuple[int, ...] | None = None
     raw: dict[str, osc_message.OscMessage] = field(default_factory=dict)
     passthrough: tuple[osc_message.OscMessage, ...] = ()
+    received_ns: int | None = None  # time.monotonic_ns() when the datagram completing it arrived
 
 
 class VmcFrameAssembler:
@@ -238,13 +243,17 @@ class VmcFrameAssembler:
     Each frame holds the last known value of every bone seen so far, so a frame that misses bones is
     completed from the previous pose; it is emitted once every required bone has been seen (before
     that it is counted as ``incomplete``). A malformed message (values not finite or beyond
-    ``MAX_VALUE`` included) is dropped on its own (``malformed``, as are unparsable packets); the
-    rest of its bundle still makes a frame. Messages outside VMC
-    and bone names outside HumanBodyBones are ``ignored``.
+    ``MAX_VALUE`` included) is dropped on its own (``malformed``); the rest of its bundle still
+    makes a frame. An unparsable datagram is ``malformed`` too, and it makes the assembler learn
+    the sender's pattern again (:meth:`forget`), since what came with it may have been no
+    sender's. A key that comes twice in one datagram is no frame's: the repeat is dropped
+    (``repeated``), so one datagram never makes more than two frames. Messages outside VMC and bone
+    names outside HumanBodyBones are ``ignored``.
     """
 
     def __init__(self, required: Sequence[str] = REQUIRED_BONES) -> None:
         self.required = tuple(required)
+        self.counts: Counter[str] = Counter(frames=0, malformed=0, incomplete=0, ignored=0, repeated=0)
         self.bones: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.raw: dict[str, osc_message.OscMessage] = {}
         self.root: tuple[np.ndarray, np.ndarray] = (np.zeros(3), _IDENTITY_XYZW)
@@ -252,12 +261,24 @@ class VmcFrameAssembler:
         self.root_offset: np.ndarray | None = None
         self.time: float | None = None
         self.ok: tuple[int, ...] | None = None
-        self.counts: Counter[str] = Counter(frames=0, malformed=0, incomplete=0, ignored=0)
+        self._bundle_keys: set[tuple[str, ...]] | None = None  # the keys of the datagram being fed
+        self.forget()
+
+    def forget(self) -> None:
+        """Learn the sender's pattern again (after garbage, whose bundling is no sender's); the
+        last pose, every value of which was checked, still completes the next frame."""
         self.last_key: tuple[str, ...] | None = None
         self.first_key: tuple[str, ...] | None = None
-        self._bundle_keys: set[tuple[str, ...]] = set()
         self._candidate: tuple[str, ...] | None = None
+        self._resync: set[tuple[str, ...]] | None = None  # after a gap: the keys skipped until a frame starts
         self._start_frame()
+
+    def interrupt(self) -> None:
+        """The stream has a gap (datagrams dropped as stale): the frame in progress is abandoned,
+        and the messages up to the sender's first key with it, so that no frame mixes poses from
+        before and after the gap."""
+        self._start_frame()
+        self._resync: set[tuple[str, ...]] | None = set() if self.first_key is not None else None
 
     def _start_frame(self) -> None:
         self._keys: set[tuple[str, ...]] = set()
@@ -286,6 +307,17 @@ class VmcFrameAssembler:
             else:
                 self.counts["ignored"] += 1
             return []
+        if self._bundle_keys is not None and key in self._bundle_keys:
+            # Twice in one datagram: no sender's frame; the first one stands, and one datagram of
+            # repeats never becomes a frame per repeat.
+            self.counts["repeated"] += 1
+            return []
+        if self._resync is not None and key != self.first_key:
+            if key not in self._resync:  # the rest of a frame begun before the gap
+                self._resync.add(key)
+                return []
+            self.first_key = key  # a whole cycle without the first key: the pattern starts here now
+        self._resync = None
         frames = []
         if self.first_key is None:
             self.first_key = key
@@ -300,7 +332,8 @@ class VmcFrameAssembler:
             self._keys = set()
         self._take(key, address, args, message)
         self._keys.add(key)
-        self._bundle_keys.add(key)
+        if self._bundle_keys is not None:
+            self._bundle_keys.add(key)
         self._previous_key = key
         if key == self.last_key and not whole:
             frames.append(self.end_frame())
@@ -386,6 +419,7 @@ class VmcFrameAssembler:
             messages = osc_messages(data)
         except (osc_message.ParseError, ValueError, IndexError, TypeError, struct.error):
             self.counts["malformed"] += 1
+            self.forget()
             return []
         names = {m.params[0] for m in messages
                  if m.address == BONE_ADDRESS and m.params and isinstance(m.params[0], str)}
@@ -400,6 +434,7 @@ class VmcFrameAssembler:
         if whole and self._pending and (self.last_key is None or self.last_key in self._bundle_keys):
             self.last_key = self._previous_key
             frames.append(self.end_frame())
+        self._bundle_keys = None
         return [f for f in frames if f is not None]
 
 
@@ -645,11 +680,21 @@ class VmcReceiver:
     for want of buffer space is read with every datagram (``SO_RXQ_OVFL``) and reported as
     ``kernel_dropped`` in :attr:`counts`; ``backlog_max`` is the most datagrams that waited in the
     queue (the parsing thread behind the reader).
+
+    Live means latest: a datagram that waited more than ``max_age`` seconds is dropped unparsed
+    (``stale``), and a frame that is that old by the time it would be handed on gives way to a
+    newer one made with it (``superseded``); so after any burst (a sender's backlog, a flood) the
+    frames are current again as soon as the queue is drained of what is old, which takes
+    microseconds per datagram. The queue never holds more than :data:`MAX_QUEUED_BYTES` (beyond,
+    what arrives is dropped: ``overflow``).
+    Each frame carries the arrival time of the datagram that completed it (``received_ns``).
     """
 
     def __init__(self, on_frame: Callable[[VmcFrame], None], host: str = DEFAULT_HOST,
-                 port: int = DEFAULT_PORT, buffer_bytes: int = RECEIVE_BUFFER) -> None:
+                 port: int = DEFAULT_PORT, buffer_bytes: int = RECEIVE_BUFFER,
+                 max_age: float = MAX_AGE_S) -> None:
         self.on_frame = on_frame
+        self.max_age_ns = round(max_age * 1e9)
         self.assembler = VmcFrameAssembler()
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
@@ -664,12 +709,16 @@ class VmcReceiver:
             raise
         self._socket.settimeout(0.1)  # the reader checks for close() this often
         self.buffer_bytes = self._socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
-        self._queue: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
+        self._queue: queue.SimpleQueue[tuple[int, bytes] | None] = queue.SimpleQueue()
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._datagrams = 0
         self._kernel_dropped = 0
         self._backlog = 0  # the most datagrams read but not yet parsed
+        self._queued_bytes = 0
+        self._stale = 0
+        self._superseded = 0
+        self._overflow = 0
         self._reader = threading.Thread(target=self._read, name="vmc-reader", daemon=True)
         self._worker = threading.Thread(target=self._work, name="vmc-frames", daemon=True)
 
@@ -682,7 +731,8 @@ class VmcReceiver:
         with self._lock:
             counts = dict(self.assembler.counts)
         counts.update(datagrams=self._datagrams, kernel_dropped=self._kernel_dropped,
-                      backlog_max=self._backlog)
+                      backlog_max=self._backlog, stale=self._stale, superseded=self._superseded,
+                      overflow=self._overflow)
         return counts
 
     def start(self) -> VmcReceiver:
@@ -703,16 +753,39 @@ class VmcReceiver:
                 if level == socket.SOL_SOCKET and kind == _SO_RXQ_OVFL and len(value) >= 4:
                     self._kernel_dropped = struct.unpack("=I", value[:4])[0]
             self._datagrams += 1
-            self._queue.put(data)
+            with self._lock:
+                if self._queued_bytes + len(data) > MAX_QUEUED_BYTES:
+                    self._overflow += 1
+                    continue
+                self._queued_bytes += len(data)
+            self._queue.put((time.monotonic_ns(), data))
         self._queue.put(None)
 
     def _work(self) -> None:
-        while (data := self._queue.get()) is not None:
-            self._backlog = max(self._backlog, self._queue.qsize())
+        """Takes what is queued at once: what waited too long is dropped unparsed, the rest made
+        into frames, and of those every one still fresh is handed on, and the newest in any case."""
+        running = True
+        while running:
+            batch = [self._queue.get()]
+            while batch[-1] is not None and not self._queue.empty():
+                batch.append(self._queue.get())
+            running = batch[-1] is not None
+            batch = [item for item in batch if item is not None]
+            self._backlog = max(self._backlog, len(batch) - 1)
+            frames = []
             with self._lock:
-                frames = self.assembler.feed_datagram(data)
-            for f in frames:
-                self.on_frame(f)
+                for arrived, data in batch:
+                    self._queued_bytes -= len(data)
+                    if time.monotonic_ns() - arrived > self.max_age_ns:
+                        self._stale += 1
+                        self.assembler.interrupt()
+                        continue
+                    frames += [(arrived, f) for f in self.assembler.feed_datagram(data)]
+            for i, (arrived, f) in enumerate(frames):
+                if i < len(frames) - 1 and time.monotonic_ns() - arrived > self.max_age_ns:
+                    self._superseded += 1
+                    continue
+                self.on_frame(replace(f, received_ns=arrived))
 
     def close(self) -> None:
         self._stop.set()

@@ -29,6 +29,7 @@ from motion_style_ros.io.vmc import (
     DEFAULT_HOST,
     DEFAULT_PORT,
     DEFAULT_SEND_PORT,
+    MAX_AGE_S,
     SenderClock,
     VmcFrame,
     VmcLink,
@@ -37,7 +38,8 @@ from motion_style_ros.io.vmc import (
 )
 from motion_style_ros.nodes import PlayerNode, joint_state, run
 
-BAD = ("malformed", "incomplete", "conversion_errors", "not_sent", "kernel_dropped")
+BAD = ("malformed", "incomplete", "conversion_errors", "not_sent", "kernel_dropped", "stale", "superseded",
+       "overflow", "repeated")
 
 
 class VmcBridge(PlayerNode):
@@ -63,6 +65,9 @@ class VmcBridge(PlayerNode):
                                   "input_topic trails its stamp (the stylizer's output latency); "
                                   "-1 = read it from the stylizer's /diagnostics (0 until it comes)",
                                   -1.0, 10.0)
+        max_age = self.param("max_age_s", MAX_AGE_S, "live bound: a datagram or frame that waited "
+                             "longer than this to be handled is dropped for the newest (counted as "
+                             "stale, superseded)", 0.001, 10.0)
         qos = self.stream_qos()
 
         self.link = VmcLink()
@@ -83,7 +88,7 @@ class VmcBridge(PlayerNode):
                                        f"{exc.strerror or exc}") from None
         # Bind before advertising: once the publisher is visible, the port is open.
         try:
-            self.receiver = VmcReceiver(self._on_frame, osc_host, osc_port)
+            self.receiver = VmcReceiver(self._on_frame, osc_host, osc_port, max_age=max_age)
         except OSError as exc:
             raise MotionStyleError(f"cannot receive VMC on udp://{osc_host}:{osc_port}: "
                                    f"{exc.strerror or exc}") from None
@@ -102,8 +107,10 @@ class VmcBridge(PlayerNode):
             + (f"; sending {input_topic} to udp://{send_host}:{send_port}" if self._sender else ""))
 
     def _on_frame(self, frame: VmcFrame) -> None:
-        """Runs on the receiver's frame thread."""
-        stamp = Time(nanoseconds=self._sender_clock.stamp(frame.time, self.get_clock().now().nanoseconds))
+        """Runs on the receiver's frame thread; the frame is stamped as of its arrival."""
+        now = self.get_clock().now().nanoseconds
+        arrived = now - (time.monotonic_ns() - frame.received_ns if frame.received_ns is not None else 0)
+        stamp = Time(nanoseconds=self._sender_clock.stamp(frame.time, arrived))
         try:
             out = self.link.receive(frame, stamp.nanoseconds)
         except MotionStyleError as exc:
