@@ -80,9 +80,10 @@ def _stylizer(context, *args, **kwargs):
         return EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(node),
                                            transition_id=transition))
 
+    # Once: a user's later `ros2 lifecycle set ... deactivate` must leave it inactive.
     activate = RegisterEventHandler(OnStateTransition(
         target_lifecycle_node=node, goal_state='inactive',
-        entities=[change(Transition.TRANSITION_ACTIVATE)]))
+        entities=[change(Transition.TRANSITION_ACTIVATE)], handle_once=True))
     return [node, activate, change(Transition.TRANSITION_CONFIGURE)]
 
 

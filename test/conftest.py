@@ -87,3 +87,19 @@ def small_model(tmp_path_factory):
 
     return recurrent_model(tmp_path_factory.mktemp("small_model") / "style_erd.onnx",
                            ["active", "elderly", "normal"])
+
+
+@pytest.fixture(scope="session")
+def ros_cli(tmp_path_factory, stream_kernels):
+    """The package installed into a scratch ament prefix as colcon installs it (once per session),
+    and the user's ``ros2``/``launch_test`` commands against it (``test/ros_cli.py``)."""
+    from ros_cli import RosCli, install, require_tools, seed_kernel_cache
+
+    require_tools()
+    base = tmp_path_factory.mktemp("ament")
+    install(base / "install", base / "build")
+    seed_kernel_cache(base / "install")
+    (base / "log").mkdir()
+    cli = RosCli(base / "install", base / "log")
+    yield cli
+    cli.close()

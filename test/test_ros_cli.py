@@ -1,0 +1,135 @@
+"""The README's ROS commands, run as a user runs them: ``ros2 launch``, ``ros2 param``, ``ros2 topic``,
+``ros2 lifecycle`` and ``ros2 run`` against the package installed into an ament prefix
+(conftest's ``ros_cli``, ``test/ros_cli.py``). One launched system serves the first tests; each
+assertion reads what the CLI printed.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import time
+
+import pytest
+import yaml
+
+from motion_style_ros.io.joint_state import JointStateLayout
+from ros_cli import DISCOVERY, error_lines
+
+NAMES = list(JointStateLayout.canonical().names)
+TRY_OUT = ["use_synthetic:=true", "markers:=true", "namespace:=demo"]  # the README's try-out
+
+
+class Launched:
+    """``ros2 launch motion_style_ros stylizer.launch.py ARGS``, the seconds until its first stylized
+    frame arrived (``ros2 topic echo --once``), stopped with Ctrl-C by the last test."""
+
+    def __init__(self, cli, args, topic="/demo/stylized/joint_states"):
+        self.cli = cli
+        start = time.monotonic()
+        self.proc = cli.start("ros2", "launch", "motion_style_ros", "stylizer.launch.py", *args,
+                              log="launch_" + "_".join(a.split(":=")[0] for a in args) + ".log")
+        self.first = cli.first_message(topic, "sensor_msgs/msg/JointState", field="name")
+        self.seconds_to_first_frame = time.monotonic() - start
+        self.code = None
+
+    def stop(self, sig=signal.SIGINT):
+        self.code = self.cli.stop(self.proc, sig)
+        return self.code, self.proc.log.read_text()
+
+
+@pytest.fixture(scope="module")
+def demo(ros_cli):
+    system = Launched(ros_cli, TRY_OUT)
+    yield system
+    if system.code is None:
+        system.stop()
+
+
+def test_ros2_launch_try_out_reaches_a_stylized_frame(demo, ros_cli):
+    assert yaml.safe_load(demo.first.split("---")[0]) == NAMES  # the input's names, in its order
+    print(f"ros2 launch to the first stylized frame: {demo.seconds_to_first_frame:.1f} s")
+    wanted = {"/demo/stylizer", "/demo/synthetic_performer"}
+    nodes = ros_cli.ros2_graph("node", "list", until=lambda out: wanted <= set(out.stdout.split()))
+    assert wanted <= set(nodes.stdout.split()), nodes
+    markers = ros_cli.first_message("/demo/stylized/markers", "visualization_msgs/msg/MarkerArray",
+                                    field="markers")
+    assert "visualization_msgs.msg.Marker(" in markers, markers  # markers:=true: the skeleton for RViz
+
+
+def test_ros2_param_set_get_dump_on_the_live_stylizer(demo, ros_cli):
+    def param(*args):
+        return ros_cli.ros2("param", *args, "--no-daemon", "--timeout", DISCOVERY)
+
+    out = param("set", "/demo/stylizer", "target_style", "youthful")
+    assert (out.returncode, out.stdout.strip()) == (0, "Set parameter successful"), out
+    out = param("set", "/demo/stylizer", "alpha", "0.5")
+    assert out.stdout.strip() == "Set parameter successful", out
+    out = param("get", "/demo/stylizer", "target_style")
+    assert out.stdout.strip() == "String value is: youthful", out
+    out = param("dump", "/demo/stylizer")
+    dumped = yaml.safe_load(out.stdout)["/demo/stylizer"]["ros__parameters"]
+    assert (dumped["target_style"], dumped["alpha"]) == ("youthful", 0.5), out.stdout
+
+    # Bad values are refused with the node's reason, as the CLI prints it; the old value stays.
+    out = param("set", "/demo/stylizer", "target_style", "sleepy")
+    assert out.stderr.startswith("Setting parameter failed: "), out
+    assert "sleepy" in out.stderr and "youthful" in out.stderr, out.stderr  # what, and what is allowed
+    out = param("set", "/demo/stylizer", "alpha", "7.0")
+    assert out.stderr.startswith("Setting parameter failed: "), out
+    out = param("set", "/demo/stylizer", "model", "other.onnx")  # read at start only
+    assert out.stderr.startswith("Setting parameter failed: "), out
+    assert param("get", "/demo/stylizer", "target_style").stdout.strip() == "String value is: youthful"
+
+
+def hz(ros_cli, *topics, seconds=4.0):
+    """``ros2 topic hz TOPICS`` for ``seconds``, then Ctrl-C: the last average rate of each topic."""
+    proc = ros_cli.start("ros2", "topic", "hz", *topics, log="hz.log")
+    time.sleep(seconds)
+    ros_cli.stop(proc)
+    text = proc.log.read_text()
+    rates = {}
+    for topic in topics:  # the multi-topic table: "<topic>  <rate>  <min> <max> <std> <window>"
+        found = re.findall(rf"^{re.escape(topic)}\s+([\d.]+)\s", text, re.M)
+        assert found, text
+        rates[topic] = float(found[-1])
+    return rates
+
+
+def test_ros2_topic_hz_of_the_output_is_the_inputs_rate(demo, ros_cli):
+    rates = hz(ros_cli, "/demo/joint_states", "/demo/stylized/joint_states")
+    assert rates["/demo/joint_states"] == pytest.approx(60, rel=0.15), rates  # synthetic_performer
+    assert rates["/demo/stylized/joint_states"] == pytest.approx(rates["/demo/joint_states"], rel=0.1), rates
+
+
+def test_ros2_launch_stops_cleanly_on_ctrl_c(demo):
+    code, log = demo.stop(signal.SIGINT)
+    assert code == 0, log
+    assert error_lines(log) == [], log
+    assert len(re.findall(r"process has finished cleanly", log)) == 2, log  # stylizer, performer
+
+
+def test_ros2_launch_managed_then_ros2_lifecycle_set_through_every_transition(ros_cli):
+    """``managed:=true`` brings stylizer_managed to active; ``ros2 lifecycle set`` then walks it
+    through deactivate, cleanup, configure, activate and shutdown, after which it exits by itself."""
+    system = Launched(ros_cli, ["managed:=true", "use_synthetic:=true", "namespace:=demo"])
+    assert yaml.safe_load(system.first.split("---")[0]) == NAMES
+
+    def lifecycle(*args):
+        return ros_cli.ros2_graph("lifecycle", *args)
+
+    assert lifecycle("get", "/demo/stylizer").stdout.split()[0] == "active"
+    for transition, state in [("deactivate", "inactive"), ("cleanup", "unconfigured"),
+                              ("configure", "inactive"), ("activate", "active")]:
+        out = lifecycle("set", "/demo/stylizer", transition)
+        assert out.stdout.strip() == "Transitioning successful", (transition, out)
+        assert lifecycle("get", "/demo/stylizer").stdout.split()[0] == state, transition
+    ros_cli.first_message("/demo/stylized/joint_states", "sensor_msgs/msg/JointState", field="name")
+    out = lifecycle("set", "/demo/stylizer", "shutdown")
+    assert out.stdout.strip() == "Transitioning successful", out
+    deadline = time.monotonic() + 30
+    while "process has finished cleanly" not in system.proc.log.read_text() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    code, log = system.stop()
+    assert re.search(r"\[stylizer_managed-1\]: process has finished cleanly", log), log
+    assert code == 0 and error_lines(log) == [], log
