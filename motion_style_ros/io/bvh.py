@@ -23,6 +23,11 @@ from motion_style_ros.io import files
 _POSITION = ("Xposition", "Yposition", "Zposition")
 _ROTATION = ("Xrotation", "Yrotation", "Zrotation")
 _NUMBER_BYTES = b"0123456789.+-eE \t\n\r\f\v"  # digits, signs, exponents, whitespace
+# what a value may hold before it is converted: a number's characters, and NaN's and infinity's
+# (those are then reported as non-finite)
+_NOT_NUMBER_OR_NAN = re.compile(r"[^0-9.+\-eEnNaAiIfFtTyY]", re.ASCII)
+MAX_DEPTH = 200  # joints nested deeper are no body (and would exhaust the reader's recursion)
+MIN_FRAME_TIME = 1e-5  # s: 100 kHz, far beyond any capture (and 1 / 5e-324 is no rate)
 MAX_VALUE = 1e9  # no channel of a capture holds more (cm: 10,000 km; degrees: 2.8 million turns)
 
 
@@ -157,7 +162,9 @@ def read(path: str | Path) -> BvhClip:
     channels: list[tuple[str, ...]] = []
     end_sites: dict[int, np.ndarray] = {}
 
-    def joint(parent: int) -> None:
+    def joint(parent: int, depth: int) -> None:
+        if depth > MAX_DEPTH:
+            raise BvhError(f"{path}: joints nested over {MAX_DEPTH} deep (a body is under 30)")
         name = tok.next("joint name")
         j = len(names)
         names.append(name)
@@ -179,7 +186,7 @@ def read(path: str | Path) -> BvhClip:
             if w == "}":
                 return
             if w == "JOINT":
-                joint(j)
+                joint(j, depth + 1)
             elif w == "End":
                 tok.expect("Site")
                 tok.expect("{")
@@ -189,9 +196,13 @@ def read(path: str | Path) -> BvhClip:
             else:
                 raise BvhError(f"{path}: unexpected {w!r} inside joint {name!r}")
 
-    joint(-1)
+    joint(-1, 1)
     if tok.i != len(tok.words):
         raise BvhError(f"{path}: unexpected {tok.words[tok.i]!r} after the hierarchy (several ROOTs?)")
+    for j, offset in [*enumerate(offsets), *end_sites.items()]:
+        if not (np.abs(offset) <= MAX_VALUE).all():  # NaN too
+            raise BvhError(f"{path}: joint {names[j]!r} has an OFFSET of {np.asarray(offset).tolist()} "
+                           f"(beyond +-{MAX_VALUE:g}: a corrupt file)")
 
     mt = _Tokens(body, path)
     mt.expect("Frames:")
@@ -199,11 +210,13 @@ def read(path: str | Path) -> BvhClip:
     mt.expect("Frame")
     mt.expect("Time:")
     frame_time = mt.number("frame time")
-    if n_frames < 1 or n_frames != int(n_frames):
-        raise BvhError(f"{path}: has {n_frames:g} frames; a clip needs at least one")
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        raise BvhError(f"{path}: frame time must be positive, found {frame_time:g}")
+    if not (np.isfinite(n_frames) and n_frames >= 1 and n_frames == int(n_frames)):
+        raise BvhError(f"{path}: has {n_frames:g} frames; a clip needs a whole number, at least one")
+    if not (np.isfinite(frame_time) and frame_time >= MIN_FRAME_TIME):
+        raise BvhError(f"{path}: frame time must be at least {MIN_FRAME_TIME:g} s, found {frame_time:g}")
     n_channels = sum(len(c) for c in channels)
+    if not n_channels:
+        raise BvhError(f"{path}: no joint has channels; a clip needs at least the root's")
     values = mt.words[mt.i :]
     expected = int(n_frames) * n_channels
     if len(values) != expected:
@@ -212,11 +225,16 @@ def read(path: str | Path) -> BvhClip:
             f"{path}: header says {int(n_frames)} frames of {n_channels} channels, "
             f"but the file holds {found:.2f} frames ({'truncated' if len(values) < expected else 'extra values'})"
         )
+    # Python and numpy also take '1_0' and other scripts' digits, which no BVH writer writes (and
+    # check() refuses)
+    if _NOT_NUMBER_OR_NAN.search("".join(values)):
+        bad = next(v for v in values if _NOT_NUMBER_OR_NAN.search(v))
+        raise BvhError(f"{path}: motion data holds a non-number {bad[:20]!r}")
     try:
         data = np.array(values, dtype=np.float64).reshape(int(n_frames), n_channels)
-    except ValueError:
-        bad = next(v for v in values if not _is_number(v))
-        raise BvhError(f"{path}: motion data holds a non-number {bad!r}") from None
+    except ValueError:  # '1.2.3', '+-1', 'e5'
+        bad = next((v for v in values if not _is_number(v)), "")
+        raise BvhError(f"{path}: motion data holds a non-number {bad[:20]!r}") from None
     bad = ~(np.abs(data) <= MAX_VALUE)  # NaN too
     if bad.any():
         f, c = np.argwhere(bad)[0]
@@ -288,9 +306,14 @@ def duration(path: str | Path) -> tuple[int, float]:
     _, sep, body = data.partition(b"MOTION")
     m = re.match(rb"\s*Frames:\s*([0-9+-]+)\s+Frame\s+Time:\s*(\S+)", body) if sep else None
     try:
-        return int(m[1]), float(m[2])
-    except (TypeError, ValueError):
+        frames, frame_time = int(m[1]), float(m[2])
+    except (TypeError, ValueError):  # no match; not a number (or an int of over 4300 digits)
         raise MotionStyleError(f"{path}: not a BVH file (no 'Frames:' and 'Frame Time:' after MOTION)") from None
+    if frames < 1:
+        raise MotionStyleError(f"{path}: has {frames} frames; a clip needs at least one")
+    if not (np.isfinite(frame_time) and frame_time >= MIN_FRAME_TIME):
+        raise MotionStyleError(f"{path}: frame time must be at least {MIN_FRAME_TIME:g} s, found {frame_time:g}")
+    return frames, frame_time
 
 
 def check(path: Path, joints: tuple[str, ...] | None = None) -> str | None:
@@ -321,13 +344,16 @@ def check(path: Path, joints: tuple[str, ...] | None = None) -> str | None:
         return "no valid 'Frames:' and 'Frame Time:' after MOTION"
     if frames < 1:
         return f"has {frames} frames; a clip needs at least one"
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        return f"frame time must be positive, found {frame_time:g}"
+    if not (np.isfinite(frame_time) and frame_time >= MIN_FRAME_TIME):
+        return f"frame time must be at least {MIN_FRAME_TIME:g} s, found {frame_time:g}"
     values = body[m.end() :].strip()
     if values.translate(None, _NUMBER_BYTES):
         bad = re.search(rb"\S*[^0-9.+\-eE\s]\S*", values)[0].decode(errors="replace")
         return f"motion data holds a non-number {bad[:20]!r}"
-    n_channels = sum(int(n) for n in re.findall(rb"CHANNELS\s+(\d+)", head))
+    counts = re.findall(rb"CHANNELS\s+(\d+)", head)
+    if any(len(n) > 1 for n in counts):  # not 0, 3 or 6 (and an int of 4300 digits is a ValueError)
+        return "a joint's CHANNELS count is not 0, 3 or 6"
+    n_channels = sum(int(n) for n in counts)
     # One frame per line is how every writer lays BVH out: count lines, fall back to counting values.
     lines = values.count(b"\n") + 1 if values else 0
     if lines == frames and len(values[values.rfind(b"\n") + 1 :].split()) == n_channels:

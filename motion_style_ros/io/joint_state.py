@@ -114,6 +114,16 @@ def _decode_default(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rotations.reshape(lead + rotations.shape[1:]), roots.reshape(lead + (3,))
 
 
+def _finite_number(v) -> bool:
+    """Whether ``v`` (from YAML) is an int or float that is finite as a float (not a bool)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    try:
+        return bool(np.isfinite(float(v)))
+    except OverflowError:  # an int beyond the floats
+        return False
+
+
 @dataclass(frozen=True)
 class _Dof:
     name: str
@@ -175,11 +185,15 @@ class JointStateLayout:
             raise bad("not a text file (a layout is YAML)") from None
         except YAMLError as exc:
             raise bad(f"not valid YAML ({' '.join(str(exc).split())})") from None
+        except RecursionError:
+            raise bad("not a layout (YAML nested too deeply)") from None
+        except ValueError as exc:  # an int of over 4300 digits
+            raise bad(f"not a layout ({' '.join(str(exc).split())})") from None
         if not isinstance(data, dict) or not isinstance(data.get("joints"), list) or not data["joints"]:
             raise bad("expected a mapping with a non-empty 'joints' list")
         extra = set(data) - {"joints", "unknown_names", "passthrough"}
         if extra:
-            raise bad(f"unknown keys {sorted(extra)}; allowed: joints, unknown_names, passthrough")
+            raise bad(f"unknown keys {sorted(map(str, extra))}; allowed: joints, unknown_names, passthrough")
         passthrough = data.get("passthrough", [])
         if not isinstance(passthrough, list) or not all(isinstance(p, str) and p for p in passthrough):
             raise bad("passthrough must be a list of name patterns (fnmatch), e.g. ['*Proximal_r?']")
@@ -195,16 +209,15 @@ class JointStateLayout:
             if set(entry) - {"name", "dof", "scale", "offset"}:
                 raise bad(f"{where} has unknown keys; allowed: name, dof, scale, offset")
             name, dof = str(entry["name"]), entry["dof"]
-            if dof not in index:
-                raise bad(f"{where} ({name}): unknown dof {dof!r}; use a default layout name such "
+            if not isinstance(dof, str) or dof not in index:
+                raise bad(f"{where} ({name!r}): unknown dof {dof!r:.60}; use a default layout name such "
                           f"as root_tx or UpperArm_L_ry")
             if name in seen:
                 raise bad(f"{where}: duplicate name {name!r}")
             seen.add(name)
             scale, offset = entry.get("scale", 1.0), entry.get("offset", 0.0)
-            if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
-                       for v in (scale, offset)) or scale == 0:
-                raise bad(f"{where} ({name}): scale and offset must be finite numbers, scale non-zero")
+            if not all(_finite_number(v) for v in (scale, offset)) or scale == 0:
+                raise bad(f"{where} ({name!r}): scale and offset must be finite numbers, scale non-zero")
             dofs.append(_Dof(name, index[dof], float(scale), float(offset)))
         return cls(dofs, ignore_unknown=unknown == "ignore", source=str(path), passthrough=passthrough)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -33,17 +34,62 @@ def model_path(name: str) -> Path:
     return files.check(path, "model")
 
 
+def _count(low: int):
+    return (int,), lambda v: not isinstance(v, bool) and v >= low, f"a whole number of at least {low}"
+
+
+def _names(v) -> bool:
+    return all(isinstance(x, str) and x for x in v)
+
+
+# What the runtime reads from a card, where a card has it: (types, check, what it must be).
+CARD_TYPES = {
+    "styles": ((list,), _names, "a list of style names"),
+    "labels": ((list,), _names, "a list of names"),
+    "fps": ((int, float), lambda v: not isinstance(v, bool) and v > 0, "a positive number"),
+    "window": _count(1), "frames_multiple": _count(1), "min_frames": _count(1),
+    "style_dim": _count(0), "content_dim": _count(0), "latent_dim": _count(0), "state_size": _count(0),
+    "feature_dim": _count(0), "style_width": _count(0), "embedding_size": _count(0),
+    "name": ((str,), bool, "a name"), "kind": ((str,), bool, "a name"),
+    "neutral_style": ((str,), bool, "a style name"), "variant": ((str,), bool, "a name"),
+    "files": ((dict,), lambda v: all(isinstance(x, str) for x in v.values()), "file names by role"),
+}
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a number a card may hold")
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):  # 1e400
+        raise ValueError(f"{text[:20]} is beyond the floats")
+    return value
+
+
 def read_card(model: Path) -> dict:
-    """The JSON model card next to a model (``x.onnx`` -> ``x.json``)."""
+    """The JSON model card next to a model (``x.onnx`` -> ``x.json``): a JSON object without NaN or
+    Infinity, whose fields the runtime reads (:data:`CARD_TYPES`) have their types."""
     card = Path(model).with_suffix(".json")
     if not card.exists():
         raise MotionStyleError(f"{card}: model card not found (it ships beside {Path(model).name})")
     try:
-        return json.loads(files.read_bytes(card, "card").decode("utf-8"))
+        data = json.loads(files.read_bytes(card, "card").decode("utf-8"), parse_constant=_no_constant,
+                          parse_float=_finite)
     except UnicodeDecodeError:
         raise MotionStyleError(f"{card}: not a text file (a model card is JSON)") from None
-    except json.JSONDecodeError as exc:
+    except json.JSONDecodeError as exc:  # before ValueError: it is one
         raise MotionStyleError(f"{card}: not valid JSON ({exc})") from None
+    except ValueError as exc:  # NaN, Infinity, 1e400
+        raise MotionStyleError(f"{card}: not a model card ({exc})") from None
+    except RecursionError:
+        raise MotionStyleError(f"{card}: not a model card (JSON nested too deeply)") from None
+    if not isinstance(data, dict):
+        raise MotionStyleError(f"{card}: not a model card (a JSON object is)")
+    for key, (types, ok, what) in CARD_TYPES.items():
+        if key in data and not (isinstance(data[key], types) and ok(data[key])):
+            raise MotionStyleError(f"{card}: {key} must be {what}, found {str(data[key])[:40]!r}")
+    return data
 
 
 class OnnxModel:

@@ -295,11 +295,16 @@ def load_map(path: str | Path) -> dict[str, str]:
         raise MotionStyleError(f"{path}: cannot read the body map ({exc})") from None
     except YAMLError as exc:
         raise MotionStyleError(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None
+    except RecursionError:
+        raise MotionStyleError(f"{path}: not a body map (YAML nested too deeply)") from None
+    except ValueError as exc:  # an int of over 4300 digits
+        raise MotionStyleError(f"{path}: not a body map ({' '.join(str(exc).split())})") from None
     if not isinstance(data, dict) or not all(isinstance(v, str) for v in data.values()):
         raise MotionStyleError(f"{path}: a body map is a mapping of {', '.join(MAP_KEYS)} to names")
     unknown = set(data) - set(MAP_KEYS)
     if unknown:
-        raise MotionStyleError(f"{path}: unknown keys {sorted(unknown)}; allowed: {', '.join(MAP_KEYS)}")
+        raise MotionStyleError(f"{path}: unknown keys {sorted(map(str, unknown))}; allowed: "
+                               f"{', '.join(MAP_KEYS)}")
     return dict(data)
 
 

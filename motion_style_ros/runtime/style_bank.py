@@ -84,8 +84,15 @@ def read(path: Path, model_digest: str, style_dim: int, styles: list[str],
         try:
             entry = Entry(tuple(float(v) for v in e["code"]), str(e["head"]), tuple(e["clips"]),
                           int(e["frames"]), {str(k): float(v) for k, v in e["probabilities"].items()})
-        except (KeyError, TypeError, ValueError):
+        # KeyError: a field missing; TypeError: a field of another type (a number for a list, a
+        # list in a code); ValueError: text for a number; AttributeError: probabilities not a
+        # mapping; OverflowError: frames infinite, a number beyond the floats
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError):
             raise MotionStyleError(f"{path}: style {name!r} is not a valid entry") from None
+        if (entry.frames < 0 or not all(isinstance(c, str) for c in entry.clips)
+                or not np.isfinite(list(entry.probabilities.values())).all()):
+            raise MotionStyleError(f"{path}: style {name!r} is not a valid entry (frames, clips or "
+                                   "probabilities)")
         if len(entry.code) != style_dim or not np.isfinite(entry.code).all() or entry.head not in heads:
             raise MotionStyleError(f"{path}: style {name!r} has no finite {style_dim}-value code "
                                    "from one of the model's heads")
@@ -99,7 +106,8 @@ def _load(path: Path) -> dict:
         raise MotionStyleError(f"{path}: no such style bank")
     try:
         raw = json.loads(files.read_bytes(path, "style bank").decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    # ValueError: JSONDecodeError, an int of over 4300 digits; RecursionError: nested too deep
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise MotionStyleError(f"{path}: not a style bank ({type(exc).__name__})") from None
     if not isinstance(raw, dict) or raw.get("version") != VERSION or not isinstance(raw.get("styles"), dict):
         raise MotionStyleError(f"{path}: not a version-{VERSION} style bank")
