@@ -16,6 +16,7 @@ from motion_style_ros.core.retarget import tpose
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import vmc
+from motion_style_ros.runtime.vmc_link import VmcLink
 from motion_style_ros.io.joint_state import rotations_from_values
 from vmc_helpers import sender_frames, unity_humanoid
 
@@ -243,7 +244,7 @@ def _messages(frame, time):
 
 
 def _bundle(messages):
-    return vmc._bundle(messages).dgram
+    return vmc.bundle(messages).dgram
 
 
 def _styles(frames):
@@ -318,7 +319,7 @@ def _link_round_trip(frames, delay_frames=0, period_ns=16_666_667):
     """Frames through VmcLink.receive, the JointState values straight back through send (what the
     relay node does; with ``delay_frames``, a stylizer that changes nothing): the frames a
     marionette then receives, and the JointStates."""
-    link = vmc.VmcLink()
+    link = VmcLink()
     asm = vmc.VmcFrameAssembler()
     received, states = [], []
     for k, f in enumerate(asm.feed_datagram(vmc.frame_bundle(f, k / 60).dgram)[0]
@@ -386,7 +387,7 @@ def test_link_time_is_what_the_bridge_gives_and_advances(sent):
 def test_a_stylized_pose_goes_out_on_the_sender_rig(humanoid, sent):
     """A stylized canonical pose (here: every arm lowered and the root moved) arrives on the
     sender's rig: its bone directions are the canonical ones, its bone lengths the sender's."""
-    link = vmc.VmcLink()
+    link = VmcLink()
     names, values = link.receive(sent[0], 10**9)
     rotations, root = link.layout.decode(names, values)
     turn = rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(25.0))
@@ -423,7 +424,7 @@ def test_root_offset_is_taken_off_and_the_scale_cancels(humanoid):
 
 
 def test_ok_states_that_say_the_pose_is_not_the_performers_are_counted(sent):
-    link = vmc.VmcLink()
+    link = VmcLink()
     with_ok = [dict(ok=(0,)), dict(ok=(1, 1, 0)), dict(ok=(1, 2, 0)), dict(ok=(1, 3, 0, 0))]
     for k, ok in enumerate(with_ok):
         frame = vmc.VmcFrame(sent[k].bones, **ok)
@@ -544,7 +545,7 @@ def test_fuzzed_streams_through_the_link_never_give_nan(sent):
     """Corrupted datagrams of a full sender stream: whatever frames the assembler still makes
     either convert to finite values or are refused with a reason, and what goes out is finite."""
     good = [vmc.frame_bundle(f, k / 60).dgram for k, f in enumerate(sent)]
-    asm, link = vmc.VmcFrameAssembler(), vmc.VmcLink()
+    asm, link = vmc.VmcFrameAssembler(), VmcLink()
     converted = refused = 0
     for k in range(200):
         data = np.frombuffer(good[k % len(good)], dtype=np.uint8).copy()
@@ -601,7 +602,7 @@ def test_blendshapes_in_a_bundle_after_the_pose_are_learnt_as_that_frames(sent):
 
 
 def test_a_finger_changed_on_its_way_back_goes_out_as_it_came_back(sent):
-    link = vmc.VmcLink()
+    link = VmcLink()
     (frame,) = vmc.VmcFrameAssembler().feed_datagram(vmc.frame_bundle(sent[0], 0.0).dgram)
     names, values = link.receive(frame, 10**9)
     changed = values.copy()
@@ -622,14 +623,14 @@ def test_bone_messages_and_bundles_are_encoded_as_python_osc_encodes_them():
 
     p, q = np.array([0.1, -0.25, 3.0]), np.array([0.0, 0.6, 0.0, 0.8])
     for name in ("Hips", "LeftThumbIntermediate", "Neck"):  # names padded to 4 bytes differently
-        assert vmc._bone_message(name, p, q).dgram == vmc.build_message(
+        assert vmc.bone_message(name, p, q).dgram == vmc.build_message(
             vmc.BONE_ADDRESS, [name, *map(float, p), *map(float, q)]).dgram
-    messages = [vmc._bone_message("Hips", p, q), vmc.build_message(vmc.TIME_ADDRESS, [1.5])]
+    messages = [vmc.bone_message("Hips", p, q), vmc.build_message(vmc.TIME_ADDRESS, [1.5])]
     builder = osc_bundle_builder.OscBundleBuilder(osc_bundle_builder.IMMEDIATELY)
     for m in messages:
         builder.add_content(vmc.build_message(*(lambda x: (x.address, x.params))(
             osc_packet.OscPacket(m.dgram).messages[0].message)))
-    assert vmc._bundle(messages).dgram == builder.build().dgram
+    assert vmc.bundle(messages).dgram == builder.build().dgram
 
 
 def test_one_datagram_of_one_bone_700_times_is_no_more_than_one_frame(sent):

@@ -197,7 +197,7 @@ def test_thru_blendshapes_and_ok_state_pass_the_bridge_with_their_frame(bridge, 
     bridge.sender.send(calibrating, 0.0)
     shaped = vmc.VmcFrame(frame.bones, blendshapes={"Joy": 0.75, "A": 0.125}, apply=True, ok=(1, 3, 0))
     messages = [m.message for m in osc_packet.OscPacket(vmc.frame_bundle(shaped, 0.5).dgram).messages]
-    packet = vmc._bundle(messages[:-1] + [thru] + messages[-1:])
+    packet = vmc.bundle(messages[:-1] + [thru] + messages[-1:])
     state = bridge.exchange(lambda: bridge.sender.send_packet(packet), bridge.states, "the shaped frame")
     assert bridge.spin_until(lambda: blends, "blendshapes")
     assert list(blends[-1].name) == ["Joy", "A"] and list(blends[-1].position) == [0.75, 0.125]

@@ -8,6 +8,7 @@ from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.retarget import MAPS, Retargeter, find_map
 from motion_style_ros.core.skeleton import Skeleton
 from motion_style_ros.io import vmc
+from motion_style_ros.io.vmc.protocol import EXTRA_PARENTS
 
 BLENDSHAPES = ("A", "I", "U", "E", "O", "Blink_L", "Blink_R", "Joy")
 
@@ -38,7 +39,7 @@ def unity_humanoid(scale=1.1, arm=1.15, leg=0.92, a_pose_deg=40.0, toe_drop=0.05
     parents = {**vmc.UNITY_PARENTS}
     for b in vmc.EXTRA_BONES:
         if "Proximal" in b:
-            parents[b] = vmc.EXTRA_PARENTS[b]
+            parents[b] = EXTRA_PARENTS[b]
         elif "Intermediate" in b:
             parents[b] = b.replace("Intermediate", "Proximal")
         elif "Distal" in b:

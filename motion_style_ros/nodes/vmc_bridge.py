@@ -10,7 +10,7 @@ their own on ``blendshape_topic`` (name = blendshape key, position = value) with
 With ``send_port`` > 0 (39540 by default, the convention for a second marionette on one host) it
 streams every JointState on ``input_topic`` back out as VMC: the stylized body on the sender's rig,
 and the fingers, eyes, jaw, blendshapes, OK and ``/VMC/Thru`` messages of the frame whose pose that
-output shows, as they came (:class:`motion_style_ros.io.vmc.VmcLink`). Which frame that is comes
+output shows, as they came (:class:`motion_style_ros.runtime.vmc_link.VmcLink`). Which frame that is comes
 from the stylizer's output latency (``stylizer_latency``, or read from the stylizer's own
 ``/diagnostics``). Counters go to ``/diagnostics`` once a second.
 """
@@ -32,11 +32,11 @@ from motion_style_ros.io.vmc import (
     MAX_AGE_S,
     SenderClock,
     VmcFrame,
-    VmcLink,
     VmcReceiver,
     VmcSender,
 )
 from motion_style_ros.nodes import PlayerNode, joint_state, run
+from motion_style_ros.runtime.vmc_link import VmcLink
 
 BAD = ("malformed", "incomplete", "conversion_errors", "not_sent", "kernel_dropped", "stale", "superseded",
        "overflow", "repeated")
