@@ -7,6 +7,8 @@ them. Reading takes a bag folder or a bare ``.mcap`` file.
 
 from __future__ import annotations
 
+import mmap
+import os
 import re
 import struct
 from collections.abc import Iterable, Sequence
@@ -170,7 +172,8 @@ def check_joint_state(store, data: bytes):
 @dataclass
 class BagContents:
     """What a bag reader got: ``messages`` as ``(topic, log_time_ns, cdr, message)``, each a usable
-    JointState, in log-time order. ``damage`` is empty for an intact bag; else why it is damaged,
+    JointState, in log-time order (``message`` the deserialised one if asked for, else None: a
+    player needs only the bytes, and a long bag's messages take several times their size). ``damage`` is empty for an intact bag; else why it is damaged,
     and ``skipped`` how many of its JointState messages were left out (None: not known, when neither
     metadata.yaml nor the file's summary says how many there were)."""
 
@@ -180,21 +183,22 @@ class BagContents:
 
 
 def read_checked(path: str | Path, topics: Sequence[str] | None = None,
-                 skip_damaged: bool = False) -> BagContents:
+                 skip_damaged: bool = False, decoded: bool = False) -> BagContents:
     """Every JointState message of the bag, each deserialised and checked before anything uses it.
 
     A damaged bag (the file cut short or overwritten, an index that lists messages the file lacks,
     a message that is not a usable JointState) raises :class:`DamagedBag` in one line; with
     ``skip_damaged`` its readable messages are returned instead (an MCAP bag is scanned record by
-    record past the damage), with the reason and the count left out.
+    record past the damage), with the reason and the count left out. ``decoded``: keep each
+    deserialised message.
     """
     path = Path(path)
     try:
-        return BagContents(_read_whole(path, topics))
+        return BagContents(_read_whole(path, topics, decoded))
     except DamagedBag as exc:
         if not skip_damaged:
             raise
-        return _salvage(path, topics, str(exc).removeprefix(f"{path}: "))
+        return _salvage(path, topics, str(exc).removeprefix(f"{path}: "), decoded)
 
 
 def _wanted(topics: Sequence[str] | None):
@@ -203,7 +207,8 @@ def _wanted(topics: Sequence[str] | None):
                                                               or "/" + topic.lstrip("/") in wanted)
 
 
-def _read_whole(path: Path, topics: Sequence[str] | None) -> list[tuple[str, int, bytes, object]]:
+def _read_whole(path: Path, topics: Sequence[str] | None,
+                decoded: bool) -> list[tuple[str, int, bytes, object]]:
     store = typestore()
     reader = _reader(path)
     wanted = _wanted(topics)
@@ -223,7 +228,7 @@ def _read_whole(path: Path, topics: Sequence[str] | None) -> list[tuple[str, int
                 if msg is None:
                     raise DamagedBag(f"{path}: damaged bag (message {len(out) + 1} on {conn.topic}: "
                                      f"{why})")
-                out.append((conn.topic, timestamp, data, msg))
+                out.append((conn.topic, timestamp, data, msg if decoded else None))
         except _damage_errors() as exc:
             raise DamagedBag(f"{path}: damaged bag ({_why(exc)})") from None
     finally:
@@ -250,7 +255,7 @@ def read_joint_states(path: str | Path, topics: Sequence[str] | None = None) -> 
     """Every JointState in the bag (all topics unless ``topics`` is given), in log-time order; a
     damaged bag raises :class:`DamagedBag`."""
     records = []
-    for _, log_time, _, msg in read_checked(path, topics).messages:
+    for _, log_time, _, msg in read_checked(path, topics, decoded=True).messages:
         stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         records.append(JointStateRecord(
             stamp, list(msg.name), np.array(msg.position, dtype=np.float64),
@@ -418,7 +423,7 @@ def _bag_files(path: Path) -> tuple[list[Path], int | None, dict[str, int]]:
     return files, total, listed
 
 
-def _salvage(path: Path, topics: Sequence[str] | None, damage: str) -> BagContents:
+def _salvage(path: Path, topics: Sequence[str] | None, damage: str, decoded: bool) -> BagContents:
     store = typestore()
     wanted = _wanted(topics)
     files, _, listed_by_topic = _bag_files(path)
@@ -426,13 +431,20 @@ def _salvage(path: Path, topics: Sequence[str] | None, damage: str) -> BagConten
     undecodable = 0
     listed_file: int | None = 0  # from the files' statistics records
     for file in files:
+        scan = _Scan()
         try:
-            buf = file.read_bytes()
+            with open(file, "rb") as f:
+                size = os.fstat(f.fileno()).st_size
+                # mapped, not read: a long bag is gigabytes; the scan copies out only the messages
+                buf = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
         except OSError as exc:
             raise MotionStyleError(f"{file}: cannot read ({exc.strerror or exc})") from None
-        scan = _Scan()
-        if buf.startswith(_MAGIC):
-            scan.walk(memoryview(buf), len(_MAGIC), len(buf), top=True)
+        if buf[:len(_MAGIC)] == _MAGIC:
+            view = memoryview(buf)
+            try:
+                scan.walk(view, len(_MAGIC), len(buf), top=True)
+            finally:
+                view.release()
         schema_of = scan.schemas
         for channel, log_time, data in scan.messages:
             if channel not in scan.channels:
@@ -445,7 +457,7 @@ def _salvage(path: Path, topics: Sequence[str] | None, damage: str) -> BagConten
             if msg is None:
                 undecodable += 1
             else:
-                messages.append((topic, log_time, data, msg))
+                messages.append((topic, log_time, data, msg if decoded else None))
         if scan.listed is None or listed_file is None:
             listed_file = None
         else:
