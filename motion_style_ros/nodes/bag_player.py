@@ -44,7 +44,7 @@ class BagPlayer(PlayerNode):
         except DamagedBag as exc:
             if skip_damaged:
                 raise
-            raise MotionStyleError(f"{exc}; skip_damaged:=true plays its readable part") from None
+            raise MotionStyleError(f"{exc}; {readable_part(bag)}") from None
         if contents.damage:
             skipped = "an unknown number of" if contents.skipped is None else str(contents.skipped)
             self.get_logger().warning(f"{bag}: {contents.damage}; playing its {len(contents.messages)} "
@@ -86,6 +86,15 @@ class BagPlayer(PlayerNode):
                 self.start += int(self.pass_ns)
         self.timer.timer_period_ns = max(int(self.start + self.offsets[self.index] - now), 100_000)
         self.timer.reset()
+
+
+def readable_part(bag: str) -> str:
+    """What ``skip_damaged:=true`` would play of a damaged bag, for the error that refuses it."""
+    try:
+        contents = read_checked(bag, skip_damaged=True)
+    except DamagedBag:
+        return "no message in it can be read"
+    return f"skip_damaged:=true plays the {len(contents.messages)} messages that can be read"
 
 
 def main(args=None) -> int:
