@@ -16,8 +16,8 @@ from motion_style_ros.core.retarget import tpose
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import vmc
-from motion_style_ros.runtime.vmc_link import VmcLink
 from motion_style_ros.io.joint_state import rotations_from_values
+from motion_style_ros.runtime.vmc_link import VmcLink
 from vmc_helpers import sender_frames, unity_humanoid
 
 RNG = np.random.default_rng(7)
