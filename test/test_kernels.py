@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from motion_style_ros.core import kernels, rotations as rot
+from motion_style_ros.core import feature_kernels, jit, rotations as rot
+from motion_style_ros.io import joint_state
 from motion_style_ros.core.features import facing_yaw
 from motion_style_ros.core.motion import forward_kinematics, rest_positions
 from motion_style_ros.core.skeleton import canonical
@@ -62,14 +63,14 @@ def test_pose_helpers_equal_the_numpy_rotation_maths():
     six = np.empty(6)
     for k in range(50):
         out = np.empty(4)
-        kernels._from_6d(d6[k], 0, out)
+        feature_kernels._from_6d(d6[k], 0, out)
         assert np.abs(out - rot.from_6d(d6[k])).max() < 1e-12
-        kernels._six(q[k], six, 0)
+        feature_kernels._six(q[k], six, 0)
         np.testing.assert_allclose(six, rot.to_6d(q[k]), atol=1e-12)
         rotated = np.empty(3)
-        kernels._rotate(q[k], v[k], rotated)
+        jit.rotate_vector(q[k], v[k], rotated)
         np.testing.assert_allclose(rotated, rot.rotate(q[k], v[k]), atol=1e-12)
-        kernels._qmul(q[k], q[-k - 1], out)
+        jit.qmul(q[k], q[-k - 1], out)
         np.testing.assert_allclose(out, rot.multiply(q[k], q[-k - 1]), atol=1e-12)
 
 
@@ -81,7 +82,7 @@ def test_pose_helpers_equal_the_numpy_rotation_maths():
 ])
 def test_between_takes_u_onto_v_as_the_numpy_one_does(u, v):
     q = np.empty(4)
-    kernels._between(u, v, q)
+    jit.quat_between(u, v, q)
     np.testing.assert_allclose(q, rot.between(u, v), atol=1e-12)
     np.testing.assert_allclose(rot.rotate(q, u / np.linalg.norm(u)), v / np.linalg.norm(v), atol=1e-12)
 
@@ -91,13 +92,13 @@ def test_layout_angles_are_rep103_xyz_euler_like_scipy_and_invert():
     q = random_quats(50)
     locked = Rotation.from_euler("XYZ", [[0.3, np.pi / 2, 0.2], [0.1, -np.pi / 2, 0.5]]).as_matrix()  # in ROS axes
     q[:2] = Rotation.from_matrix(core_to_ros.T @ locked @ core_to_ros).as_quat()[:, [3, 0, 1, 2]]
-    angles = kernels.euler_rows(q)
+    angles = joint_state.euler_rows(q)
     ros = Rotation.from_matrix(core_to_ros @ scipy_of(q).as_matrix() @ core_to_ros.T)
     back = Rotation.from_euler("XYZ", angles)  # intrinsic X-Y-Z, as the layout documents
     np.testing.assert_allclose((back.inv() * ros).magnitude(), 0.0, atol=1e-9)
     np.testing.assert_allclose(angles[2:], ros[2:].as_euler("XYZ"), atol=1e-9)
     assert abs(angles[0, 2]) < 1e-12 and abs(angles[1, 2]) < 1e-12  # locked: the third angle is 0
-    again = kernels.quat_rows(angles)
+    again = joint_state.quat_rows(angles)
     np.testing.assert_allclose(np.abs(np.sum(again * q, axis=-1)), 1.0, atol=1e-9)  # q or -q
 
 
@@ -106,9 +107,9 @@ def test_layout_values_and_poses_invert_each_other():
     q = random_quats(7, sk.n_joints)
     q[:, :sk.pelvis] = [1.0, 0.0, 0.0, 0.0]  # above the pelvis: static, as in a stream
     roots = RNG.normal(size=(7, 3))
-    values = kernels.layout_values(q, roots, sk.pelvis)
+    values = joint_state.layout_values(q, roots, sk.pelvis)
     assert values.shape == (7, 3 + 3 * (sk.n_joints - sk.pelvis))
     np.testing.assert_array_equal(values[:, :3], roots[:, [2, 0, 1]])
-    rotations, back = kernels.layout_poses(values, sk.pelvis)
+    rotations, back = joint_state.layout_poses(values, sk.pelvis)
     np.testing.assert_allclose(back, roots, atol=1e-15)
     np.testing.assert_allclose(np.abs(np.sum(rotations * q, axis=-1)), 1.0, atol=1e-9)

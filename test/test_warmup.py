@@ -1,10 +1,15 @@
 """The warm-up compiles every kernel a stream and the clip functions use, each with one signature:
 a stream of any backend, live conditioning on a real rig, then compiles nothing more."""
 
+import importlib
+import pkgutil
+
 import numpy as np
 from numba.core.registry import CPUDispatcher
 
-from motion_style_ros.core import kernels, rotations as rot
+import motion_style_ros.core
+import motion_style_ros.io
+from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.features import decode, encode
 from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.runtime.offline import stylizer
@@ -13,8 +18,15 @@ from motion_style_ros.runtime.warmup import warm_kernels
 
 
 def signatures() -> dict[str, int]:
-    return {name: len(f.signatures) for name in dir(kernels)
-            if isinstance(f := getattr(kernels, name), CPUDispatcher)}
+    """Every compiled kernel of the package (wherever it lives) with its number of signatures."""
+    found = {}
+    for package in (motion_style_ros.core, motion_style_ros.io):
+        for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
+            module = importlib.import_module(info.name)
+            for name, f in vars(module).items():
+                if isinstance(f, CPUDispatcher) and f.py_func.__module__ == info.name:
+                    found[f"{info.name}.{name}"] = len(f.signatures)
+    return found
 
 
 def test_after_the_warm_up_no_stream_or_clip_compiles_a_kernel():

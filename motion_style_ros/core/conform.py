@@ -27,8 +27,11 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from numba import njit
 
-from motion_style_ros.core import kernels, rotations as rot
+from motion_style_ros.core import jit, roll_kernels
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.jit import norm3
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.proportions import stance_sums
 from motion_style_ros.core.skeleton import Skeleton
@@ -160,10 +163,10 @@ class RollModel:
         parent, the chest, keeps its frame), each joint's refined between grid points by a
         parabola through its chain's cost (its neighbours' rolls held), so that a live estimate and
         a whole clip's differ by less than a grid step, and each chain's scaled by how clearly it
-        beats no rolls at all (:data:`ROLL_EVIDENCE`; :func:`~motion_style_ros.core.kernels.solve_rolls`)."""
+        beats no rolls at all (:data:`ROLL_EVIDENCE`; :func:`~motion_style_ros.core.roll_kernels.solve_rolls`)."""
         low, high = ROLL_EVIDENCE
-        return kernels.solve_rolls(self.coefficients, self.basis, self.constant, self.angles,
-                                   kernels.rows(second), kernels.rows(first), kernels.rows(count),
+        return roll_kernels.solve_rolls(self.coefficients, self.basis, self.constant, self.angles,
+                                   jit.rows(second), jit.rows(first), jit.rows(count),
                                    len(CHAINS[0]), ROLL_SURE_FRAMES, low, high, ROLL_MIN_FRAMES,
                                    self._unrolled)
 
@@ -200,9 +203,9 @@ def apply_rolls(rotations: np.ndarray, joints: list[int], angles: np.ndarray, un
     (each joint's local rotation turned by its parent's inverse roll on the left and its own on
     the right; positions do not move). ``undo`` turns conformed rotations back."""
     lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
-    out = kernels.roll_rows(kernels.rows(rotations).reshape(-1, n_joints, 4),
+    out = roll_kernels.roll_rows(jit.rows(rotations).reshape(-1, n_joints, 4),
                             np.asarray(joints, dtype=np.int64),
-                            kernels.rows(np.broadcast_to(angles, lead + (len(joints),))).reshape(-1, len(joints)),
+                            jit.rows(np.broadcast_to(angles, lead + (len(joints),))).reshape(-1, len(joints)),
                             len(CHAINS[0]), undo)
     return out.reshape(rotations.shape)
 
@@ -286,16 +289,16 @@ class StreamRolls:
         if not live.any():
             return measured
         upper, lower = _arm_bones(self.skeleton)
-        kernels.add_arm_moments(kernels.rows(rotations),
-                                kernels.rows(positions), self._joints, upper, lower,
+        roll_kernels.add_arm_moments(jit.rows(rotations),
+                                jit.rows(positions), self._joints, upper, lower,
                                 _HANG_COS, live, self._second, self._first, self._count)
         # every frame while the first few hanging-arm frames come in (until the rig is measured),
         # then every solve_seconds, every second after
-        due = kernels.rolls_due(live, self.frames, self._count, len(CHAINS[0]), self._restarted, self._settle,
+        due = roll_kernels.rolls_due(live, self.frames, self._count, len(CHAINS[0]), self._restarted, self._settle,
                                 self._every, self._late, ROLL_SURE_FRAMES)
         if due.any():
             self.target[due] = self.model.solve(self._second[due], self._first[due], self._count[due])
-        measured = kernels.ease_rolls(live, due, self.frames, self._settle, self._restarted, self.target,
+        measured = roll_kernels.ease_rolls(live, due, self.frames, self._settle, self._restarted, self.target,
                                       self.angles, self._gain, _RESTART)
         return measured
 
@@ -344,6 +347,26 @@ class StreamGround:
         returns the offsets ``(P,)``."""
         up = np.where(self._frames < self._settle, self._down, self._up)
         self._frames += 1.0
-        kernels.follow_ground(kernels.rows(ankles), self._last, self.offset, self._fps,
+        follow_ground(jit.rows(ankles), self._last, self.offset, self._fps,
                               float(self.speed), self.ankle_height, self._down, up)
         return self.offset
+
+
+@njit(cache=True)
+def follow_ground(ankles, last, offset, fps, speed, height, down, up) -> None:
+    """:class:`~motion_style_ros.core.conform.StreamGround`'s frame: each performer's ``offset``
+    ``(P,)`` moved towards the height of its lower still ankle (slower than ``speed``; ``ankles``
+    ``(P, 2, 3)``, ``last`` the previous frame's, NaN after a start) above ``height``, at rate
+    ``down`` when lower and ``up[r]`` when higher; ``last`` becomes ``ankles``."""
+    for r in range(ankles.shape[0]):
+        lowest = np.inf
+        for s in range(2):
+            moved = norm3(ankles[r, s, 0] - last[r, s, 0], ankles[r, s, 1] - last[r, s, 1],
+                           ankles[r, s, 2] - last[r, s, 2])
+            if moved * fps < speed:  # NaN on a first frame: not still
+                lowest = min(lowest, ankles[r, s, 1])
+            last[r, s] = ankles[r, s]
+        if lowest == np.inf:
+            continue
+        error = (lowest - height) - offset[r]
+        offset[r] += (down if error < 0.0 else up[r]) * error

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from motion_style_ros.core import kernels
+from motion_style_ros.core import feature_kernels, jit
 from motion_style_ros.core.motion import Motion, kinematic_arrays
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
@@ -89,8 +89,8 @@ def _check_canonical(sk: Skeleton) -> None:
 def facing_yaw(global_positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     """Heading of the body (radians about +Y, 0 = facing +Z) from hips and shoulders, per frame."""
     lead = global_positions.shape[:-2]
-    rows = kernels.rows(global_positions).reshape((-1,) + global_positions.shape[-2:])
-    return kernels.facing_yaw(rows, _index(skeleton, _ACROSS)).reshape(lead)
+    rows = jit.rows(global_positions).reshape((-1,) + global_positions.shape[-2:])
+    return feature_kernels.facing_yaw(rows, _index(skeleton, _ACROSS)).reshape(lead)
 
 
 @functools.cache
@@ -144,9 +144,9 @@ def _encode_frames(
     lead, n_joints = yaw.shape, rotations.shape[-2]
 
     def rows(a: np.ndarray, *shape: int) -> np.ndarray:
-        return kernels.rows(a).reshape((-1, *shape))
+        return jit.rows(a).reshape((-1, *shape))
 
-    out = kernels.encode_rows(
+    out = feature_kernels.encode_rows(
         lay.index, _feet(sk), _contact_heights(sk), sk.pelvis, rows(rotations, n_joints, 4),
         rows(pelvis_rot, 4), rows(g_pos, n_joints, 3), rows(prev_g_pos, n_joints, 3), rows(yaw),
         rows(prev_yaw), float(fps), CONTACT_SPEED, lay.size)
@@ -172,10 +172,10 @@ def _pose(
     ``ground`` with heading ``yaw``; the one implementation behind :func:`decode` and
     :class:`StreamDecoder`. Joints above the pelvis (the canonical static root) stay identity."""
     lead = f.shape[:-1]
-    rotations, root_pos = kernels.pose_rows(
-        lay.index, sk.pelvis, sk.n_joints, kernels.rows(f).reshape(-1, f.shape[-1]),
-        kernels.rows(yaw).reshape(-1),
-        kernels.rows(ground).reshape(-1, 3))
+    rotations, root_pos = feature_kernels.pose_rows(
+        lay.index, sk.pelvis, sk.n_joints, jit.rows(f).reshape(-1, f.shape[-1]),
+        jit.rows(yaw).reshape(-1),
+        jit.rows(ground).reshape(-1, 3))
     return rotations.reshape(lead + (sk.n_joints, 4)), root_pos.reshape(lead + (3,))
 
 
@@ -197,8 +197,8 @@ def decode(
     lay = feature_layout(sk)
     f = np.asarray(features, dtype=np.float64)
     _check_decodable(f, lay, "T")
-    start = np.zeros(3) if start_ground is None else kernels.rows(start_ground)
-    yaw, ground = kernels.trajectory(kernels.rows(f), start, float(start_yaw), float(fps))
+    start = np.zeros(3) if start_ground is None else jit.rows(start_ground)
+    yaw, ground = feature_kernels.trajectory(jit.rows(f), start, float(start_yaw), float(fps))
     rotations, root_pos = _pose(sk, lay, f, yaw, ground)
     return Motion.from_rotations(sk, rotations, root_pos, fps)
 
@@ -227,9 +227,9 @@ class StreamEncoder:
         """``(P, F)`` float32 features of one frame: local rotations ``(P, J, 4)`` and pelvis
         positions ``(P, 3)`` (the translation of the pelvis in its parent's frame)."""
         sk, lay = self.skeleton, self._layout
-        return kernels.encode_stream(
+        return feature_kernels.encode_stream(
             *kinematic_arrays(sk), sk.pelvis, _index(sk, _ACROSS), lay.index, _feet(sk), _contact_heights(sk),
-            kernels.rows(rotations), kernels.rows(root_positions),
+            jit.rows(rotations), jit.rows(root_positions),
             self._last, self._yaw, self._fresh, float(self.fps), CONTACT_SPEED, lay.size)
 
     @property
@@ -272,8 +272,8 @@ class StreamDecoder:
     def pull(self, ground: np.ndarray, yaw: np.ndarray, gain: float) -> None:
         """Move every performer's ground point and heading the fraction ``gain`` of the way towards
         ``ground`` and ``yaw`` (bounds the drift of an integrated trajectory from a live one)."""
-        kernels.pull_stream(self._ground, self._yaw, kernels.rows(ground),
-                            kernels.rows(yaw), self._fresh, float(gain))
+        feature_kernels.pull_stream(self._ground, self._yaw, jit.rows(ground),
+                            jit.rows(yaw), self._fresh, float(gain))
 
     def move(self, offset: np.ndarray) -> None:
         """Move every performer's ground point by ``offset`` ``(P, 3)`` (its horizontal part): the
@@ -291,5 +291,5 @@ class StreamDecoder:
                 f"features for {f.shape[0]} performers; this decoder has {len(self._yaw)}"
             )
         sk = self.skeleton
-        return kernels.decode_stream(lay.index, sk.pelvis, sk.n_joints, kernels.rows(f), self._yaw,
+        return feature_kernels.decode_stream(lay.index, sk.pelvis, sk.n_joints, jit.rows(f), self._yaw,
                                      self._ground, self._fresh, float(self.fps))

@@ -45,9 +45,23 @@ frame as it came: 0 leaves the frame untouched (a stream at alpha 0 is the input
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from motion_style_ros.core import kernels
+import numpy as np
+from numba import njit
+
+from motion_style_ros.core import jit
+from motion_style_ros.core.jit import (
+    fk_row,
+    local_rotation,
+    norm3,
+    qmul,
+    quat_between,
+    rest_pose,
+    rotate_vector,
+    unit_clip,
+    wrap_angle,
+)
 from motion_style_ros.core.features import CONTACT_HEIGHT, Mask
 from motion_style_ros.core.intensity import toward
 from motion_style_ros.core.motion import forward_kinematics, kinematic_arrays, rest_positions
@@ -131,16 +145,16 @@ class FootLock:
         the frame the output was made from; None for a stream with no input (a generated one),
         whose own low, slow ankles are taken as planted (:class:`OwnContact`); ``strength``
         ``(P,)``: see the module docstring (default: full). The arithmetic is
-        :func:`motion_style_ros.core.kernels.lock_feet`."""
+        :func:`motion_style_ros.core.foot_lock.lock_feet`."""
         sk = self.skeleton
-        rotations = kernels.rows(rotations)
-        roots = kernels.rows(root_positions)
+        rotations = jit.rows(rotations)
+        roots = jit.rows(root_positions)
         if input_ankles is None:
             _, g_pos = forward_kinematics(sk, rotations, rest_positions(sk, roots), joints=[])
             input_ankles = self._own(g_pos[:, self._ankle])
-        out, root = kernels.lock_feet(
+        out, root = lock_feet(
             *kinematic_arrays(sk), sk.pelvis, self._hip, self._knee, self._ankle, self._toes,
-            self._height, rotations, roots, kernels.rows(input_ankles),
+            self._height, rotations, roots, jit.rows(input_ankles),
             self._last, self._last_out, self._last_root, self._back, self._target, self._landed,
             self._offset, self._heading, self._turn, self._glide, self._weight, self._locked, self._axis,
             self._placed, self.fps, float(self.speed), float(self.max_stretch), self._fade, bool(self.clearance),
@@ -181,3 +195,171 @@ class OwnContact:
         self._landed = np.where((down & np.isnan(self._landed[..., 0]))[..., None], ankles, self._landed)
         self._landed[~down] = np.nan
         return np.where(down[..., None], self._landed, ankles)
+
+
+@njit(cache=True)
+def lock_feet(parents, offsets, pelvis, hips, knees, ankles, toes, heights, rotations, roots, inputs,
+              last, last_out, last_root, back, target, landed, offset, heading, turn, glide, weight, locked,
+              axis, placed, fps, speed, max_stretch, fade, clearance, anchor_root, anchor_stretch, glide_rate, near,
+              down_height, anchor_ease, swing_reach, eps):
+    """:class:`~motion_style_ros.core.foot_lock.FootLock`'s frame (see its module for what each
+    step does and why): the output's local rotations ``(P, J, 4)`` and roots ``(P, 3)``, the lock's
+    state arrays updated in place; ``inputs`` ``(P, 2, 3)``: the input's ankles."""
+    n, n_joints = rotations.shape[0], rotations.shape[1]
+    out = rotations.copy()
+    root = roots.copy()
+    positions = np.empty((n_joints, 3))
+    g_rot = np.empty((n, n_joints, 4))
+    g_pos = np.empty((n, n_joints, 3))
+    foot_turn = np.empty((n, 2))
+    goal = np.empty((n, 2, 3))
+    moved = np.zeros((n, 2), dtype=np.bool_)
+    was = locked.copy()
+    toe = np.empty(3)
+    any_moved = False
+    for r in range(n):
+        rest_pose(offsets, pelvis, roots[r], positions)
+        fk_row(parents, rotations[r], positions, g_rot[r], g_pos[r])
+        contact = np.zeros(2, dtype=np.bool_)
+        forward = np.zeros(2)  # how far the ankle is in front of its hip (along its foot), 0 to 1
+        held = np.empty(2)
+        away = np.empty((2, 3))
+        for s in range(2):
+            a = ankles[s]
+            d0, d1, d2 = inputs[r, s, 0] - last[r, s, 0], inputs[r, s, 1] - last[r, s, 1], inputs[r, s, 2] - last[r, s, 2]
+            moving = norm3(d0, d1, d2) * fps  # NaN on a first frame
+            last[r, s] = inputs[r, s]
+            contact[s] = inputs[r, s, 1] < heights[s] and moving < speed
+            start = contact[s] and not was[r, s]
+            if was[r, s] and contact[s]:  # a new lock glides on with the stylizer's ankle, less each frame
+                for c in range(3):
+                    target[r, s, c] += glide[r, s] * (g_pos[r, a, c] - last_out[r, s, c])
+            glide[r, s] = glide_rate if start else glide[r, s] * glide_rate
+            last_out[r, s] = g_pos[r, a]
+            if start:  # where the stylizer's ankle lands, under where the output's last was
+                target[r, s] = g_pos[r, a]
+                if not math.isnan(placed[r, s, 0]):
+                    target[r, s, 0], target[r, s, 2] = placed[r, s, 0], placed[r, s, 2]
+                landed[r, s] = inputs[r, s]
+            rotate_vector(g_rot[r, a], toes[s], toe)
+            ahead_of_hip = ((g_pos[r, a, 0] - g_pos[r, hips[s], 0]) * toe[0]
+                            + (g_pos[r, a, 2] - g_pos[r, hips[s], 2]) * toe[2]) / max(math.hypot(toe[0], toe[2]), eps)
+            forward[s] = min(max(ahead_of_hip / swing_reach, 0.0), 1.0)
+            h = math.atan2(toe[0], toe[2])
+            if start:
+                heading[r, s] = h
+            held[s] = wrap_angle(heading[r, s] - h)
+            for c in range(3):
+                away[s, c] = g_pos[r, a, c] - target[r, s, c]
+        if anchor_root:
+            step = np.empty(3)
+            for c in range(3):
+                step[c] = root[r, c] - last_root[r, c]
+                if math.isnan(step[c]):  # a first frame: no step to hold back
+                    step[c] = 0.0
+            step[1] = 0.0
+            length = norm3(step[0], step[1], step[2])
+            for c in range(3):
+                step[c] /= max(length, eps)
+            want = 0.0
+            for s in range(2):
+                ahead = np.empty(3)
+                for c in range(3):
+                    ahead[c] = away[s, c] - (inputs[r, s, c] - landed[r, s, c])
+                reach = norm3(ahead[0], ahead[1], ahead[2])
+                down = was[r, s] and reach > anchor_stretch and g_pos[r, ankles[s], 1] < heights[s] + down_height
+                if down:
+                    scale = 1.0 - anchor_stretch / max(reach, eps)
+                    want = max(want, scale * (ahead[0] * step[0] + ahead[1] * step[1] + ahead[2] * step[2]))
+            back[r] = min(back[r] + anchor_ease * (want - back[r]), length)
+            for c in range(3):
+                shift = -step[c] * back[r]
+                root[r, c] += shift
+                for s in range(2):
+                    g_pos[r, hips[s], c] += shift
+                    g_pos[r, knees[s], c] += shift
+                    g_pos[r, ankles[s], c] += shift
+                    away[s, c] += shift
+        last_root[r] = root[r]
+        for s in range(2):
+            a = ankles[s]
+            reach = norm3(away[s, 0], away[s, 1], away[s, 2])
+            if was[r, s] and reach > max_stretch:  # the leash
+                for c in range(3):
+                    target[r, s, c] += away[s, c] * (1.0 - max_stretch / max(reach, eps))
+            if was[r, s] and not contact[s]:  # released: the correction then fades out
+                for c in range(3):
+                    offset[r, s, c] = target[r, s, c] - g_pos[r, a, c]
+                turn[r, s] = held[s]
+            locked[r, s] = contact[s]
+            weight[r, s] = 1.0 if contact[s] else max(weight[r, s] - fade, 0.0)
+            x = min(max(weight[r, s], 0.0), 1.0)
+            eased = x * x * (3.0 - 2.0 * x)  # easing.smoothstep
+            for c in range(3):
+                goal[r, s, c] = target[r, s, c] if contact[s] else g_pos[r, a, c] + eased * offset[r, s, c]
+            foot_turn[r, s] = held[s] if contact[s] else eased * turn[r, s]
+            if clearance and not contact[s] and inputs[r, s, 1] > goal[r, s, 1]:
+                # lifted as high as the input's: a leg reaching forward swings up about the hip at
+                # the stylizer's extension (bending a straight leg's knee turns it far for a few
+                # cm); one behind the hip bends its knee (its toes would drag); in between, the
+                # goal goes part of the way, by how far forward the ankle is
+                hip = hips[s]
+                dx, dz = goal[r, s, 0] - g_pos[r, hip, 0], goal[r, s, 2] - g_pos[r, hip, 2]
+                extent2 = ((g_pos[r, a, 0] - g_pos[r, hip, 0]) ** 2 + (g_pos[r, a, 1] - g_pos[r, hip, 1]) ** 2
+                           + (g_pos[r, a, 2] - g_pos[r, hip, 2]) ** 2)
+                goal[r, s, 1] = inputs[r, s, 1]
+                drop = goal[r, s, 1] - g_pos[r, hip, 1]
+                across = math.sqrt(dx * dx + dz * dz)
+                if forward[s] > 0.0 and extent2 > drop * drop and across > eps:
+                    scale = 1.0 + forward[s] * (math.sqrt(extent2 - drop * drop) / across - 1.0)
+                    goal[r, s, 0] = g_pos[r, hip, 0] + scale * dx
+                    goal[r, s, 2] = g_pos[r, hip, 2] + scale * dz
+            gap = norm3(goal[r, s, 0] - g_pos[r, a, 0], goal[r, s, 1] - g_pos[r, a, 1], goal[r, s, 2] - g_pos[r, a, 2])
+            moved[r, s] = gap > near or abs(foot_turn[r, s]) > near
+            placed[r, s] = goal[r, s]
+            any_moved = any_moved or moved[r, s]
+    if not any_moved:
+        return out, root
+    u, v, bent, swing, q, tmp, upper, lower, foot = (np.empty(3), np.empty(3), np.empty(3), np.empty(4),
+                                                      np.empty(4), np.empty(4), np.empty(4), np.empty(4),
+                                                      np.empty(4))
+    for r in range(n):
+        for s in range(2):
+            hip, knee, ankle = hips[s], knees[s], ankles[s]
+            # two-bone IK: bend the knee to the goal's distance, then swing the hip onto the goal
+            for c in range(3):
+                u[c] = g_pos[r, hip, c] - g_pos[r, knee, c]
+                v[c] = g_pos[r, ankle, c] - g_pos[r, knee, c]
+            a, b = norm3(u[0], u[1], u[2]), norm3(v[0], v[1], v[2])
+            k0, k1, k2 = u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]
+            size = norm3(k0, k1, k2)
+            if size > 1e-6 * a * b:  # the last good knee axis is kept for a straight leg
+                d = max(size, eps)
+                axis[r, s, 0], axis[r, s, 1], axis[r, s, 2] = k0 / d, k1 / d, k2 / d
+            known = axis[r, s, 0] != 0.0 or axis[r, s, 1] != 0.0 or axis[r, s, 2] != 0.0
+            to_goal = norm3(goal[r, s, 0] - g_pos[r, hip, 0], goal[r, s, 1] - g_pos[r, hip, 1],
+                             goal[r, s, 2] - g_pos[r, hip, 2])
+            c_len = min(max(to_goal, abs(a - b) + 1e-4), a + b - 1e-4)
+            now = math.acos(unit_clip((u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / max(a * b, eps)))
+            wanted = math.acos(unit_clip((a * a + b * b - c_len * c_len) / max(2 * a * b, eps)))
+            half = 0.5 * (wanted - now if known else 0.0)
+            sin = math.sin(half)
+            q[0], q[1], q[2], q[3] = math.cos(half), sin * axis[r, s, 0], sin * axis[r, s, 1], sin * axis[r, s, 2]
+            rotate_vector(q, v, bent)
+            for c in range(3):
+                bent[c] += g_pos[r, knee, c] - g_pos[r, hip, c]  # the bent ankle, from the hip
+                u[c] = goal[r, s, c] - g_pos[r, hip, c]
+            quat_between(bent, u, swing)
+            qmul(swing, g_rot[r, hip], upper)
+            qmul(q, g_rot[r, knee], tmp)
+            qmul(swing, tmp, lower)
+            half = 0.5 * foot_turn[r, s]
+            tmp[0], tmp[1], tmp[2], tmp[3] = math.cos(half), 0.0, math.sin(half), 0.0
+            qmul(tmp, g_rot[r, ankle], foot)
+            if not moved[r, s]:
+                continue
+            # local = the parent's world rotation's inverse times the world rotation
+            local_rotation(g_rot[r, parents[hip]], upper, out[r, hip])
+            local_rotation(upper, lower, out[r, knee])
+            local_rotation(lower, foot, out[r, ankle])
+    return out, root

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import math
 import functools
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-from motion_style_ros.core import kernels, rotations as rot
+from motion_style_ros.core import jit
+from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.skeleton import Skeleton, subset as skeleton_subset
 from motion_style_ros.errors import MotionStyleError
 
@@ -99,9 +102,9 @@ def forward_kinematics(
     """Global rotations ``(..., J, 4)`` and positions ``(..., J, 3)`` from local ones; with
     ``joints``, the global rotations of those joints only."""
     lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
-    q = kernels.rows(rotations).reshape(-1, n_joints, 4)
-    t = kernels.rows(np.broadcast_to(positions, lead + (n_joints, 3)))
-    g_rot, g_pos = kernels.forward_kinematics(kinematic_arrays(skeleton)[0], q, t.reshape(-1, n_joints, 3))
+    q = jit.rows(rotations).reshape(-1, n_joints, 4)
+    t = jit.rows(np.broadcast_to(positions, lead + (n_joints, 3)))
+    g_rot, g_pos = jit.forward_kinematics(kinematic_arrays(skeleton)[0], q, t.reshape(-1, n_joints, 3))
     g_rot, g_pos = g_rot.reshape(lead + (n_joints, 4)), g_pos.reshape(lead + (n_joints, 3))
     return (g_rot if joints is None else g_rot[..., joints, :]), g_pos
 
@@ -110,7 +113,7 @@ def forward_kinematics(
 def kinematic_arrays(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
     """The skeleton's parents (int64) and rest offsets (float64) as the compiled kernels take them,
     made once per skeleton."""
-    return np.array(skeleton.parents, dtype=np.int64), kernels.rows(skeleton.offsets)
+    return np.array(skeleton.parents, dtype=np.int64), jit.rows(skeleton.offsets)
 
 
 def local_from_global(skeleton: Skeleton, global_rotations: np.ndarray) -> np.ndarray:
@@ -133,3 +136,27 @@ def subset(motion: Motion, keep: tuple[str, ...] | list[str]) -> Motion:
         if p >= 0:
             local_pos[:, j] = rot.rotate(rot.conjugate(g_rot[:, p]), g_pos[:, j] - g_pos[:, p])
     return Motion(sub, local_rot, local_pos, motion.fps)
+
+
+@njit(cache=True)
+def check_frame(rotations, roots, tolerance):
+    """A streamed frame's rotations ``(P, J, 4)`` normalised, and what is wrong with it: ``(0, ...)``
+    nothing; ``(1, performer, 0, 0.0)`` a non-finite number; ``(2, performer, joint, norm)`` a
+    quaternion whose norm is more than ``tolerance`` off 1."""
+    out = np.empty_like(rotations)
+    for r in range(rotations.shape[0]):
+        finite = math.isfinite(roots[r, 0]) and math.isfinite(roots[r, 1]) and math.isfinite(roots[r, 2])
+        for j in range(rotations.shape[1]):
+            for c in range(4):
+                finite = finite and math.isfinite(rotations[r, j, c])
+        if not finite:
+            return out, 1, r, 0, 0.0
+    for r in range(rotations.shape[0]):
+        for j in range(rotations.shape[1]):
+            q = rotations[r, j]
+            n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+            if abs(n - 1.0) > tolerance:
+                return out, 2, r, j, n
+            for c in range(4):
+                out[r, j, c] = q[c] / n
+    return out, 0, 0, 0, 0.0

@@ -18,9 +18,12 @@ performer's own proportions.
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from motion_style_ros.core import kernels
+import numpy as np
+from numba import njit
+
+from motion_style_ros.core import jit
 from motion_style_ros.core.motion import Motion
 
 PRIOR_WEIGHT = 0.5  # (m/s)^2 frames: a few steps outweigh it
@@ -40,10 +43,10 @@ def _stance_sums(root_velocity: np.ndarray, leg_velocity: np.ndarray, scale: np.
                  ) -> tuple[np.ndarray, np.ndarray]:
     """The least-squares sums ``(-v . l, l . l)`` of each frame's stance foot: ``root_velocity``
     ``(N, 2)`` and ``leg_velocity`` ``(N, K, 2)`` of the contact points (ankles and toes),
-    horizontal m/s (:func:`motion_style_ros.core.kernels.stance_rows`)."""
-    return kernels.stance_rows(kernels.rows(root_velocity),
-                               kernels.rows(leg_velocity),
-                               kernels.rows(scale), MIN_LEG_SPEED, STANCE_RESIDUAL)
+    horizontal m/s (:func:`stance_rows`)."""
+    return stance_rows(jit.rows(root_velocity),
+                               jit.rows(leg_velocity),
+                               jit.rows(scale), MIN_LEG_SPEED, STANCE_RESIDUAL)
 
 
 def _estimate(cross: np.ndarray, square: np.ndarray, reference: float) -> np.ndarray:
@@ -139,8 +142,8 @@ class StreamScale:
         the estimate is applied at once, and a stylizer with a memory can forget the frames
         before (as for the arm rolls)."""
         low, high = SCALE_RANGE
-        return kernels.observe_scale(
-            kernels.rows(relative_ankles), self._relative, self._step, self.frozen,
+        return observe_scale(
+            jit.rows(relative_ankles), self._relative, self._step, self.frozen,
             self._measured, self._cross, self._square, self.target, self.scale, self.fps, self.reference,
             PRIOR_WEIGHT, low, high, MIN_LEG_SPEED, STANCE_RESIDUAL, RESTART_EVIDENCE, RESTART_OFF, self._gain)
 
@@ -154,3 +157,73 @@ class StreamScale:
         """Stylized root positions ``(P, 3)`` (canonical proportions) in the stream's world."""
         out = self._stream + self.scale[:, None] * (positions - self._canonical)
         return np.where(np.isnan(self._stream[:, :1]), positions, out)
+
+
+@njit(cache=True)
+def _stance(root_velocity, leg_velocity, scale, min_speed, residual_fraction):
+    """One frame's least-squares sums ``(-v . l, l . l)`` of its stance foot (the contact point
+    whose world velocity at this ``scale`` is least; see ``proportions._stance_sums``), or zeros
+    where no foot is planted: horizontal root velocity ``(2,)``, contact points' ``(K, 2)``."""
+    best, foot = np.inf, 0
+    for k in range(leg_velocity.shape[0]):
+        w0 = root_velocity[0] + scale * leg_velocity[k, 0]
+        w1 = root_velocity[1] + scale * leg_velocity[k, 1]
+        moving = w0 * w0 + w1 * w1
+        if moving < best:
+            best, foot = moving, k
+    l0, l1 = leg_velocity[foot, 0], leg_velocity[foot, 1]
+    square = l0 * l0 + l1 * l1
+    speed = math.sqrt(square)
+    if speed > min_speed and math.sqrt(best) < residual_fraction * scale * speed:
+        return -(root_velocity[0] * l0 + root_velocity[1] * l1), square
+    return 0.0, 0.0
+
+
+@njit(cache=True)
+def stance_rows(root_velocity, leg_velocity, scale, min_speed, residual_fraction):
+    """:func:`_stance` of frames: ``(N, 2)``, ``(N, K, 2)``, ``(N,)`` -> the sums ``(N,)`` twice."""
+    n = root_velocity.shape[0]
+    cross, square = np.empty(n), np.empty(n)
+    for r in range(n):
+        cross[r], square[r] = _stance(root_velocity[r], leg_velocity[r], scale[r], min_speed, residual_fraction)
+    return cross, square
+
+
+@njit(cache=True)
+def observe_scale(relative_points, relative, step, frozen, measured_before, cross, square, target, scale, fps,
+                  reference, prior, low, high, min_speed, residual_fraction, evidence, off, gain):
+    """:meth:`~motion_style_ros.core.proportions.StreamScale.observe`'s frame, the state arrays
+    updated in place: ``relative_points`` ``(P, K, 3)`` the contact points relative to the pelvis,
+    ``relative`` ``(P, K, 2)`` the last frame's (horizontal; NaN after a start), ``step`` ``(P, 3)``
+    the root's last displacement; the sums ``cross``, ``square``, the estimate ``target`` and the
+    applied ``scale`` ``(P,)``. Returns the performers whose size has just been measured."""
+    n, k = relative_points.shape[0], relative_points.shape[1]
+    have = np.zeros(n, dtype=np.bool_)
+    for r in range(n):
+        have[r] = not (math.isnan(relative[r, 0, 0]) or math.isnan(step[r, 0]) or frozen[r])
+    root_v = np.empty(2)
+    leg_v = np.empty((k, 2))
+    measured = np.zeros(n, dtype=np.bool_)
+    for r in range(n):
+        if have[r]:
+            for a, c in ((0, 0), (1, 2)):
+                root_v[a] = (0.0 if math.isnan(step[r, c]) else step[r, c]) * fps
+                for i in range(k):
+                    d = relative_points[r, i, c] - relative[r, i, a]
+                    leg_v[i, a] = (0.0 if math.isnan(d) else d) * fps
+            c_add, s_add = _stance(root_v, leg_v, target[r] * reference, min_speed, residual_fraction)
+            cross[r] += c_add
+            square[r] += s_add
+        if have.any() and not frozen[r]:  # proportions._estimate
+            ratio = (cross[r] + prior * reference) / (square[r] + prior) / reference
+            target[r] = min(max(ratio, low), high)
+        for i in range(k):
+            relative[r, i, 0] = relative_points[r, i, 0]
+            relative[r, i, 1] = relative_points[r, i, 2]
+        if frozen[r]:
+            continue
+        enough = square[r] >= evidence
+        measured[r] = not measured_before[r] and enough and abs(target[r] - scale[r]) >= off
+        measured_before[r] = measured_before[r] or enough
+        scale[r] += (1.0 if measured[r] else gain) * (target[r] - scale[r])
+    return measured

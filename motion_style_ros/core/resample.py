@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from motion_style_ros.core import kernels, rotations as rot
+import numpy as np
+from numba import njit
+
+from motion_style_ros.core import jit
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.jit import EPS, local_rotation, norm3, qmul
 from motion_style_ros.core.motion import Motion
 
 
@@ -53,24 +58,71 @@ class Hermite:
         if len(frames) >= 3:
             tp, qp, pp = frames[-3]
             ratio = self.span / (self.t0 - tp)
-            self._r1, self._r0 = kernels.hermite_tangents(self._q0, _rows(q1), _rows(qp), ratio)
+            self._r1, self._r0 = hermite_tangents(self._q0, _rows(q1), _rows(qp), ratio)
             self.v0 = ratio * (self.p0 - pp)
         else:  # both tangents the difference: linear
-            self._r1 = self._r0 = kernels.hermite_tangents(self._q0, _rows(q1), _rows(q1), 0.0)[0]
+            self._r1 = self._r0 = hermite_tangents(self._q0, _rows(q1), _rows(q1), 0.0)[0]
             self.v0 = self.p1 - self.p0
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         s = min(max(float((t - self.t0) / self.span), 0.0), 1.0)  # every streamed output frame: no np.clip
         s2, s3 = s * s, s * s * s
         a, b, c, d = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2  # x0, m0, x1, m1
-        rotations = kernels.hermite_rotations(self._q0, self._r0, self._r1, b, c + d).reshape(self._shape)
+        rotations = hermite_rotations(self._q0, self._r0, self._r1, b, c + d).reshape(self._shape)
         return rotations, a * self.p0 + b * self.v0 + c * self.p1 + d * (self.p1 - self.p0)
 
 
 def _rows(q: np.ndarray) -> np.ndarray:
-    return kernels.rows(q).reshape(-1, 4)
+    return jit.rows(q).reshape(-1, 4)
 
 
 def hermite(frames: list[tuple[float, np.ndarray, np.ndarray]], t: float) -> tuple[np.ndarray, np.ndarray]:
     """:class:`Hermite` of ``frames`` at ``t`` (one time)."""
     return Hermite(frames)(t)
+
+
+@njit(cache=True)
+def hermite_rotations(q0, r0, r1, b, cd):
+    """``q0 exp(b r0 + cd r1)`` of rows (``resample.Hermite``): quaternions ``(N, 4)`` and
+    rotation vectors ``(N, 3)`` twice."""
+    out = np.empty_like(q0)
+    e = np.empty(4)
+    for r in range(q0.shape[0]):
+        v0 = b * r0[r, 0] + cd * r1[r, 0]
+        v1 = b * r0[r, 1] + cd * r1[r, 1]
+        v2 = b * r0[r, 2] + cd * r1[r, 2]
+        angle = norm3(v0, v1, v2)
+        scale = 0.5 if angle < 1e-9 else math.sin(0.5 * angle) / max(angle, 1e-12)  # rotations.exp
+        e[0], e[1], e[2], e[3] = math.cos(0.5 * angle), scale * v0, scale * v1, scale * v2
+        qmul(q0[r], e, out[r])
+    return out
+
+
+@njit(cache=True)
+def _log_between(q0, q1, ratio, out) -> None:
+    """``ratio * rotations.log(conjugate(q0) * q1)``: the rotation vector from ``q0`` to ``q1``
+    (short arc), scaled, into ``out`` (3,)."""
+    q = np.empty(4)
+    local_rotation(q0, q1, q)
+    n = max(math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]), EPS)
+    sign = -1.0 if q[0] / n < 0.0 else 1.0
+    w, x, y, z = sign * q[0] / n, sign * q[1] / n, sign * q[2] / n, sign * q[3] / n
+    s = norm3(x, y, z)
+    scale = 2.0 if s < 1e-9 else 2.0 * math.atan2(s, w) / max(s, 1e-12)
+    out[0], out[1], out[2] = ratio * scale * x, ratio * scale * y, ratio * scale * z
+
+
+@njit(cache=True)
+def hermite_tangents(q0, q1, qp, ratio):
+    """The rotation vectors of ``resample.Hermite``'s segment from ``q0`` to ``q1`` (rows ``(N,
+    4)``): to ``q1``, and ``-ratio`` times the one to the frame before, ``qp``, ``(N, 3)`` each."""
+    r1 = np.empty((q0.shape[0], 3))
+    r0 = np.empty((q0.shape[0], 3))
+    for r in range(q0.shape[0]):
+        _log_between(q0[r], q1[r], 1.0, r1[r])
+        _log_between(q0[r], qp[r], -ratio, r0[r])
+    return r1, r0
+
+
+# --- JointState layout (io.joint_state): core frame <-> REP-103 Euler angles ----------------------
+# REP-103 (x, y, z) are the core's (z, x, y); a rotation maps with its axis.

@@ -8,9 +8,13 @@ reference the tests check against, costs more per call than a streamed frame aff
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from motion_style_ros.core import kernels
+import numpy as np
+from numba import njit
+
+from motion_style_ros.core import jit
+
 
 _EPS = 1e-12
 
@@ -239,14 +243,14 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarray:
     """Spherical interpolation along the short arc; ``t`` broadcasts over the leading axes
-    (:func:`motion_style_ros.core.kernels.slerp_rows`)."""
+    (:func:`slerp_rows`)."""
     a, b, t = (np.asarray(x, dtype=np.float64) for x in (a, b, t))
     lead = np.broadcast_shapes(a.shape[:-1], b.shape[:-1], t.shape)
 
     def rows(x: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-        return kernels.rows(np.broadcast_to(x, shape)).reshape((-1,) + shape[len(lead):])
+        return jit.rows(np.broadcast_to(x, shape)).reshape((-1,) + shape[len(lead):])
 
-    return kernels.slerp_rows(rows(a, lead + (4,)), rows(b, lead + (4,)), rows(t, lead)).reshape(lead + (4,))
+    return slerp_rows(rows(a, lead + (4,)), rows(b, lead + (4,)), rows(t, lead)).reshape(lead + (4,))
 
 
 def log(q: np.ndarray) -> np.ndarray:
@@ -300,3 +304,26 @@ def matrix_from_6d(d6: np.ndarray) -> np.ndarray:
 
 def from_6d(d6: np.ndarray) -> np.ndarray:
     return from_matrix(matrix_from_6d(d6))
+
+
+@njit(cache=True)
+def slerp_rows(a, b, t):
+    """``rotations.slerp`` of rows: quaternions ``(N, 4)`` twice, fractions ``(N,)``."""
+    out = np.empty_like(a)
+    for r in range(a.shape[0]):
+        dot = a[r, 0] * b[r, 0] + a[r, 1] * b[r, 1] + a[r, 2] * b[r, 2] + a[r, 3] * b[r, 3]
+        flip = -1.0 if dot < 0.0 else 1.0
+        theta = math.acos(min(max(abs(dot), -1.0), 1.0))
+        sin = math.sin(theta)
+        if sin < 1e-6:
+            wa, wb = 1.0 - t[r], t[r]
+        else:
+            wa, wb = math.sin((1.0 - t[r]) * theta) / sin, math.sin(t[r] * theta) / sin
+        n2 = 0.0
+        for c in range(4):
+            out[r, c] = wa * a[r, c] + wb * flip * b[r, c]
+            n2 += out[r, c] * out[r, c]
+        n = max(math.sqrt(n2), _EPS)
+        for c in range(4):
+            out[r, c] /= n
+    return out

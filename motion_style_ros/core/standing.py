@@ -13,8 +13,9 @@ rotation stay the stylizer's.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-from motion_style_ros.core import kernels
+from motion_style_ros.core import jit
 from motion_style_ros.core.features import Mask, feature_layout
 from motion_style_ros.core.skeleton import Skeleton, canonical
 
@@ -46,7 +47,32 @@ class Standing:
     def __call__(self, output: np.ndarray, features: np.ndarray) -> np.ndarray:
         """The model's output frame ``(P, >= 4)`` (root block first) as float64 with the root
         motion of standing performers eased into that of the input frame's ``features`` ``(P, F)``
-        (:func:`motion_style_ros.core.kernels.stand`)."""
-        return kernels.stand(self._contact.start, self._sides, _ROOT_MOTION, self._frame, float(self.hold_seconds),
+        (:func:`motion_style_ros.core.stand`)."""
+        return stand(self._contact.start, self._sides, _ROOT_MOTION, self._frame, float(self.hold_seconds),
                              self._ease, self._still, self._weight,
-                             kernels.rows(output), kernels.rows(features, np.float32))
+                             jit.rows(output), jit.rows(features, np.float32))
+
+
+@njit(cache=True)
+def stand(contact, sides, columns, frame, hold, ease, still, weight, output, features):
+    """:class:`~motion_style_ros.core.standing.Standing`'s frame: the model's output rows ``(P, >=
+    4)`` as float64 with the root motion (``columns``) of performers standing on both feet
+    eased into that of ``features`` ``(P, F)``; ``still`` and ``weight`` ``(P,)`` updated in place.
+    ``contact``: the features' first contact column; ``sides`` ``(feet, 2)``: each foot's side."""
+    out = output.copy()
+    for r in range(out.shape[0]):
+        left = right = 0.0
+        for i in range(sides.shape[0]):
+            if features[r, contact + i] > 0.5:
+                left += sides[i, 0]
+                right += sides[i, 1]
+        still[r] = still[r] + frame if min(left, right) > 0.0 else 0.0
+        step = ease if still[r] >= hold - 1e-9 else -ease
+        weight[r] = min(max(weight[r] + step, 0.0), 1.0)
+        x = min(max(weight[r], 0.0), 1.0)
+        w = x * x * (3.0 - 2.0 * x)  # easing.smoothstep
+        if w == 0.0:
+            continue
+        for c in columns:
+            out[r, c] = (1.0 - w) * out[r, c] + w * features[r, c]
+    return out

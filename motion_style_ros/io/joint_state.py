@@ -30,6 +30,7 @@ pose they came with (:class:`FrameDelay`: the stylized output of stamp ``S`` sho
 
 from __future__ import annotations
 
+import math
 import fnmatch
 import functools
 from collections import deque
@@ -38,8 +39,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
-from motion_style_ros.core import kernels
+from motion_style_ros.core import jit
+from motion_style_ros.core.jit import qmul, quat_entries
 from motion_style_ros.core.retarget import tpose
 from motion_style_ros.core.skeleton import Skeleton, canonical
 from motion_style_ros.errors import MotionStyleError
@@ -67,7 +70,7 @@ def to_ros(v: np.ndarray) -> np.ndarray:
 
 def _rows(x: np.ndarray, width: int) -> np.ndarray:
     """``x (..., width)`` as the kernels' float64 C rows ``(N, width)``."""
-    return kernels.rows(np.asarray(x, dtype=np.float64).reshape(-1, width))
+    return jit.rows(np.asarray(x, dtype=np.float64).reshape(-1, width))
 
 
 def rotation_names(bones: Sequence[str]) -> list[str]:
@@ -78,12 +81,12 @@ def rotation_names(bones: Sequence[str]) -> list[str]:
 def rotation_values(quats: np.ndarray) -> np.ndarray:
     """Core-frame quaternions ``(N, 4)`` as ``(3 N,)`` angles, the layout's convention (REP-103 axes,
     intrinsic X-Y-Z Euler), e.g. a VMC sender's finger rotations relative to its rest pose."""
-    return kernels.euler_rows(_rows(quats, 4)).ravel()
+    return euler_rows(_rows(quats, 4)).ravel()
 
 
 def rotations_from_values(values: np.ndarray) -> np.ndarray:
     """The inverse of :func:`rotation_values`: ``(3 N,)`` angles -> core quaternions ``(N, 4)``."""
-    return kernels.quat_rows(_rows(values, 3))
+    return quat_rows(_rows(values, 3))
 
 
 def default_names(skeleton: Skeleton | None = None) -> list[str]:
@@ -103,13 +106,13 @@ def _encode_default(rotations: np.ndarray, root_positions: np.ndarray) -> np.nda
     """``(..., 22, 4)`` local rotations and ``(..., 3)`` pelvis positions -> ``(..., 66)``."""
     rotations = np.asarray(rotations, dtype=np.float64)
     lead, n_joints = rotations.shape[:-2], rotations.shape[-2]
-    values = kernels.layout_values(_rows(rotations, n_joints * 4).reshape(-1, n_joints, 4),
+    values = layout_values(_rows(rotations, n_joints * 4).reshape(-1, n_joints, 4),
                                    _rows(root_positions, 3), _PELVIS)
     return values.reshape(lead + values.shape[-1:])
 
 
 def _decode_default(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    rotations, roots = kernels.layout_poses(_rows(values, values.shape[-1]), _PELVIS)
+    rotations, roots = layout_poses(_rows(values, values.shape[-1]), _PELVIS)
     lead = values.shape[:-1]
     return rotations.reshape(lead + rotations.shape[1:]), roots.reshape(lead + (3,))
 
@@ -311,3 +314,81 @@ class FrameDelay:
         if best is None:
             raise IndexError("no frame pushed")
         return best[1]
+
+
+@njit(cache=True)
+def _ros_euler(q, out, at) -> None:
+    """Intrinsic X-Y-Z Euler angles (``rotations.to_euler(q, "XYZ")``) of the core quaternion
+    ``q`` turned into REP-103 axes, into ``out[at:at + 3]``."""
+    ros = np.empty(4)
+    ros[0], ros[1], ros[2], ros[3] = q[0], q[3], q[1], q[2]
+    m00, m01, m02, _, m11, m12, _, m21, m22 = quat_entries(ros)
+    cos_b = math.hypot(m00, m01)
+    out[at + 1] = math.atan2(m02, cos_b)
+    if cos_b < 1e-7:  # gimbal lock: the third angle 0, the first takes the whole turn
+        out[at], out[at + 2] = math.atan2(m21, m11), 0.0
+    else:
+        out[at], out[at + 2] = math.atan2(-m12, m22), math.atan2(-m01, m00)
+
+
+@njit(cache=True)
+def _ros_quat(angles, at, q) -> None:
+    """The inverse of :func:`_ros_euler`: ``Rx @ Ry @ Rz`` of ``angles[at:at + 3]`` as a core
+    quaternion ``q``."""
+    ca, sa = math.cos(0.5 * angles[at]), math.sin(0.5 * angles[at])
+    cb, sb = math.cos(0.5 * angles[at + 1]), math.sin(0.5 * angles[at + 1])
+    cc, sc = math.cos(0.5 * angles[at + 2]), math.sin(0.5 * angles[at + 2])
+    w, x, y, z = ca * cb, sa * cb, ca * sb, sa * sb  # Rx @ Ry, then @ Rz:
+    rw, rx, ry, rz = w * cc - z * sc, x * cc + y * sc, y * cc - x * sc, z * cc + w * sc
+    q[0], q[1], q[2], q[3] = rw, ry, rz, rx
+
+
+@njit(cache=True)
+def euler_rows(quats):
+    """:func:`_ros_euler` of every row of ``quats (N, 4)``: ``(N, 3)``."""
+    out = np.empty((quats.shape[0], 3))
+    for r in range(quats.shape[0]):
+        _ros_euler(quats[r], out[r], 0)
+    return out
+
+
+@njit(cache=True)
+def quat_rows(angles):
+    """:func:`_ros_quat` of every row of ``angles (N, 3)``: ``(N, 4)``."""
+    out = np.empty((angles.shape[0], 4))
+    for r in range(angles.shape[0]):
+        _ros_quat(angles[r], 0, out[r])
+    return out
+
+
+@njit(cache=True)
+def layout_values(rotations, roots, pelvis):
+    """The default JointState layout of poses (rows of ``rotations (F, J, 4)``, ``roots (F, 3)``):
+    the pelvis position in REP-103 axes, its world orientation (the static root's rotation times
+    the pelvis's), then every joint below it, three angles each: ``(F, 3 + 3 (J - pelvis))``."""
+    n_joints = rotations.shape[1]
+    out = np.empty((rotations.shape[0], 3 + 3 * (n_joints - pelvis)))
+    hips = np.empty(4)
+    for f in range(rotations.shape[0]):
+        out[f, 0], out[f, 1], out[f, 2] = roots[f, 2], roots[f, 0], roots[f, 1]
+        qmul(rotations[f, 0], rotations[f, pelvis], hips)
+        _ros_euler(hips, out[f], 3)
+        for j in range(pelvis + 1, n_joints):
+            _ros_euler(rotations[f, j], out[f], 3 + 3 * (j - pelvis))
+    return out
+
+
+@njit(cache=True)
+def layout_poses(values, pelvis):
+    """The inverse of :func:`layout_values`: local rotations ``(F, J, 4)`` (the joints above the
+    pelvis identity, the pelvis its world orientation) and roots ``(F, 3)``."""
+    n_joints = pelvis + (values.shape[1] - 3) // 3
+    rotations = np.zeros((values.shape[0], n_joints, 4))
+    roots = np.empty((values.shape[0], 3))
+    for f in range(values.shape[0]):
+        roots[f, 0], roots[f, 1], roots[f, 2] = values[f, 1], values[f, 2], values[f, 0]
+        for j in range(pelvis):
+            rotations[f, j, 0] = 1.0
+        for j in range(pelvis, n_joints):
+            _ros_quat(values[f], 3 + 3 * (j - pelvis), rotations[f, j])
+    return rotations, roots

@@ -67,7 +67,9 @@ from typing import Protocol
 
 import numpy as np
 
-from motion_style_ros.core import kernels, rotations as rot
+from motion_style_ros.core import jit
+from motion_style_ros.core import rotations as rot
+from motion_style_ros.core.motion import check_frame
 from motion_style_ros.core.conform import ANKLES, ROLL_MIN_FRAMES, StreamGround, StreamRolls, conform_rolls
 from motion_style_ros.core.features import UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
@@ -512,8 +514,8 @@ class StreamSession:
                 f"{np.shape(root_positions)}; expected ({n}, {j}, 4) local quaternions (w, x, y, z) "
                 f"of the canonical skeleton's {j} joints and ({n}, 3) pelvis positions"
             )
-        p = kernels.rows(p)
-        q, problem, k, joint, norm = kernels.check_frame(kernels.rows(q), p,
+        p = jit.rows(p)
+        q, problem, k, joint, norm = check_frame(jit.rows(q), p,
                                                          QUATERNION_TOLERANCE)
         if problem == 1:
             raise MotionStyleError(f"performer {k}: NaN or infinite values in the frame")

@@ -1,6 +1,6 @@
 """Every compiled kernel a stream and the clip functions run, made ready before the first frame.
 
-The core's arithmetic is compiled by numba on first use (:mod:`motion_style_ros.core.kernels`) and
+The core's arithmetic is compiled by numba on first use (:mod:`motion_style_ros.core.jit`) and
 cached on disk. The first use after an install compiles it (17-45 s on a small 2-core
 machine), later ones load the cache (a fraction of a second); :func:`warm_kernels` pays either
 before a node subscribes, so that neither lands on a live stream's first frames. It streams a
