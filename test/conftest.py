@@ -7,6 +7,10 @@ from pathlib import Path
 
 import pytest
 
+# launch_testing files (test/launch/test_*.launch.py) run with `launch_test`, not as pytest modules:
+# test_launch.py runs them so.
+collect_ignore_glob = ["launch/*.launch.py"]
+
 # ROS 2 in tests: discovery stays on the loopback interface (by default Fast DDS multicasts
 # discovery on every interface) and in a domain of this test process's own. Set at import, so
 # rclpy used in-process and every subprocess started from the tests inherit it.

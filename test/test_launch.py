@@ -1,10 +1,11 @@
-"""launch/stylizer.launch.py against the package it starts.
+"""launch/stylizer.launch.py against the package it starts, and the launch_testing tests.
 
-``launch`` and ``launch_ros`` are not on PyPI, so the first tests read the launch file's syntax tree:
-every executable it starts is a console script of setup.py, and every parameter it sets or its YAML
-files hold is one the node declares. The last test runs the installed launch file with the real
-launch service; it needs ``launch_ros`` and the package installed in an ament prefix (a ROS 2
-install after ``colcon build``; the README says how it was run here) and skips elsewhere.
+The first tests read the launch file's syntax tree: every executable it starts is a console script
+of setup.py, and every parameter it sets or its YAML files hold is one the node declares. The
+others run the real launch service and ``launch_test`` (``launch``, ``launch_ros`` and
+``launch_testing`` are not on PyPI: ``make venv`` installs them from ``../shared/ros``) on the
+package installed into an ament prefix as colcon installs it (conftest's ``ros_cli``). The ROS
+commands a user types are test_ros_cli.py's.
 """
 
 import ast
@@ -82,7 +83,8 @@ def test_launch_sets_only_declared_parameters():
 
 
 def test_params_files_hold_declared_parameters():
-    assert yaml_parameters(ROOT / "config" / "stylizer.yaml", "stylizer") == declared("stylizer")
+    # every stylizer parameter but target_style, whose default is the model card's neutral style
+    assert yaml_parameters(ROOT / "config" / "stylizer.yaml", "stylizer") == declared("stylizer") - {"target_style"}
     assert yaml_parameters(ROOT / "config" / "vmc_bridge.yaml", "vmc_bridge") <= declared("vmc_bridge")
     text = LAUNCH.read_text()
     for name in ("stylizer.yaml", "vmc_bridge.yaml"):
@@ -92,14 +94,11 @@ def test_params_files_hold_declared_parameters():
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 
 
-def test_launch_file_runs_with_the_real_launch_service(tmp_path):
-    pytest.importorskip("launch_ros", reason="needs a sourced ROS 2 install: no PyPI wheel has launch_ros")
-    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
-    try:
-        share = Path(get_package_share_directory("motion_style_ros"))
-    except PackageNotFoundError:
-        pytest.skip("motion_style_ros is not installed in an ament prefix (AMENT_PREFIX_PATH)")
+def test_launch_file_runs_with_the_real_launch_service(tmp_path, ros_cli, monkeypatch):
+    # The installed launch file (FindPackageShare) and nodes, from the ament prefix.
+    for key in ("AMENT_PREFIX_PATH", "PYTHONPATH"):
+        monkeypatch.setenv(key, ros_cli.env[key])
+    share = ros_cli.prefix / "share" / "motion_style_ros"
     import rclpy
     from launch import LaunchDescription, LaunchService
     from launch.actions import IncludeLaunchDescription
@@ -158,3 +157,21 @@ def test_launch_file_runs_with_the_real_launch_service(tmp_path):
     assert seen["frames"] > 30 and seen["markers"] > 0
     assert seen["parameters"] == {"model": str(model), "target_style": "elderly", "alpha": 1.0,
                                   "publish_markers": True, "blend_seconds": 0.7}
+
+
+LAUNCH_TESTS = sorted((ROOT / "test" / "launch").glob("test_*.launch.py"))
+
+
+@pytest.mark.parametrize("path", LAUNCH_TESTS, ids=[p.name for p in LAUNCH_TESTS])
+def test_launch_testing_file_passes_under_launch_test(path, ros_cli):
+    """``launch_test FILE``, as a user or CI runs a launch_testing file: exit 0, and both its active
+    and post-shutdown tests ran and passed."""
+    out = ros_cli.run("launch_test", str(path), timeout=300)
+    text = out.stdout + out.stderr
+    assert out.returncode == 0, text
+    runs = re.findall(r"^Ran (\d+) tests? in .*\n\n(OK|FAILED.*)$", text, re.M)
+    assert len(runs) == 2 and all(result == "OK" and int(n) > 0 for n, result in runs), text
+
+
+def test_launch_testing_files_exist():
+    assert [p.name for p in LAUNCH_TESTS] == ["test_stylizer_bag.launch.py"]
