@@ -138,10 +138,10 @@ class RosCli:
         return out.stdout
 
     @staticmethod
-    def stop(proc: subprocess.Popen, sig: int = signal.SIGINT, timeout: float = 30) -> int:
-        """Send ``sig`` (Ctrl-C by default) to ``proc`` alone and wait; its exit code. A process
-        group still alive after ``timeout`` is killed and the test fails."""
-        if proc.poll() is None:
+    def stop(proc: subprocess.Popen, sig: int | None = signal.SIGINT, timeout: float = 30) -> int:
+        """Send ``sig`` (Ctrl-C by default; None: none, it has had one) to ``proc`` alone and wait;
+        its exit code. A process group still alive after ``timeout`` is killed and the test fails."""
+        if sig is not None and proc.poll() is None:
             proc.send_signal(sig)
         try:
             return proc.wait(timeout)

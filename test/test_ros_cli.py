@@ -6,6 +6,7 @@ assertion reads what the CLI printed.
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import time
@@ -133,3 +134,45 @@ def test_ros2_launch_managed_then_ros2_lifecycle_set_through_every_transition(ro
     code, log = system.stop()
     assert re.search(r"\[stylizer_managed-1\]: process has finished cleanly", log), log
     assert code == 0 and error_lines(log) == [], log
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_ros2_run_nodes_stop_cleanly_on_a_signal_while_streaming(ros_cli, tmp_path, sig):
+    """``ros2 run`` of a performer, the stylizer, a relay and a recorder of the stylized stream;
+    mid-stream each gets ``sig`` at once: SIGINT as Ctrl-C sends it (to ``ros2 run``'s whole process
+    group), SIGTERM as a supervisor sends it (to the node's process). Each exits 0 without an error
+    line, and the recorder's bag is readable and holds every message it reported writing."""
+    import psutil
+
+    from motion_style_ros.io.bags import read_joint_states
+
+    ns = f"/sig_{sig.name.lower()}"
+    bag = tmp_path / "stylized"
+    nodes = {
+        "synthetic_performer": [],
+        "stylizer": [],
+        "relay": ["-r", "stylized/joint_states:=relayed/joint_states"],
+        "recorder": ["-p", "topics:=[stylized/joint_states]", "-p", f"bag:={bag}"],
+    }
+    procs = {name: ros_cli.start("ros2", "run", "motion_style_ros", name, "--ros-args", "-r",
+                                 f"__ns:={ns}", *extra, log=f"{sig.name}_{name}.log")
+             for name, extra in nodes.items()}
+    ros_cli.first_message(f"{ns}/stylized/joint_states", "sensor_msgs/msg/JointState", field="name")
+    ros_cli.first_message(f"{ns}/relayed/joint_states", "sensor_msgs/msg/JointState", field="name")
+    time.sleep(1.0)  # streaming and recording
+    for name, proc in procs.items():
+        if sig == signal.SIGINT:
+            os.killpg(proc.pid, sig)
+        else:
+            (child,) = psutil.Process(proc.pid).children()  # the node's process under ros2 run
+            child.send_signal(sig)
+    for name, proc in procs.items():
+        code = ros_cli.stop(proc, None)  # the signal has been sent: wait
+        log = proc.log.read_text()
+        assert code == 0, (name, log)
+        assert error_lines(log) == [], (name, log)
+    written = re.search(r"wrote (\d+) messages to", procs["recorder"].log.read_text())
+    assert written, procs["recorder"].log.read_text()
+    records = read_joint_states(bag)
+    assert len(records) == int(written.group(1)) > 0
+    assert all(r.names == NAMES for r in records)
