@@ -30,7 +30,8 @@ def add_parser(subparsers) -> None:
                    help="stgcn backend: latent seed of the style codes (default: 0)")
     p.add_argument("--seed-spread", type=float, default=DEFAULTS["seed_spread"], metavar="S",
                    help="stgcn backend: how much seeds differ, 0 to 4 (default: 1, as trained)")
-    p.add_argument("--alpha", type=float, default=1.0, help="style strength in [0, 1] (default: 1)")
+    p.add_argument("--alpha", type=float, default=DEFAULTS["alpha"],
+                   help=f"style strength in [0, 1] (default: {DEFAULTS['alpha']:g})")
     p.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
                    help="stylizer backend (default: recurrent)")
     p.add_argument("--model", default=None, help="model file (default: the backend's shipped model)")

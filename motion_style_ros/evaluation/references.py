@@ -32,6 +32,7 @@ from motion_style_ros.core.features import facing_yaw
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.evaluation.harness import PUBLISHED, Clip, Pair, SkipPair
+from motion_style_ros.runtime.defaults import DEFAULTS
 
 
 class ReferenceStylizer:
@@ -44,7 +45,7 @@ class ReferenceStylizer:
     (:data:`~motion_style_ros.evaluation.harness.PUBLISHED`)."""
 
     def __init__(self, clips: list[Clip], backend: str = "stgcn", model: str | Path | None = None,
-                 alpha: float = 1.0, threads: int = 1, seed: int = 0, same_content: bool = False,
+                 alpha: float = DEFAULTS["alpha"], threads: int = 1, seed: int = 0, same_content: bool = False,
                  session: dict | None = None) -> None:
         from motion_style_ros.runtime.backends import backend as spec
         from motion_style_ros.runtime.backends import with_feature

@@ -16,6 +16,7 @@ from motion_style_ros.evaluation.harness import PUBLISHED, Clip
 from motion_style_ros.evaluation.judges import Judge
 from motion_style_ros.evaluation.metrics import foot_skating, largest_jump
 from motion_style_ros.runtime import backends
+from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import model_path, read_card
 from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession, WindowsSession
 
@@ -62,7 +63,7 @@ def _local(motion: Motion) -> np.ndarray:
 
 
 def lookahead_costs(pairs: list[tuple[Motion, str]], model: str | Path = DEFAULT_MODEL,
-                    lookaheads: tuple[int, ...] = LOOKAHEADS, hop: int = 4,
+                    lookaheads: tuple[int, ...] = LOOKAHEADS, hop: int = DEFAULTS["hop"],
                     judge: Judge | None = None) -> list[dict]:
     """One row per lookahead over ``(source clip, target style)`` pairs (30 fps canonical clips):
     the largest joint jump between consecutive output frames over the input's own (a style that
@@ -154,7 +155,7 @@ def control_pairs(clips: list[Clip], seed: int = 0) -> list[tuple[Motion, str]]:
 
 
 def bench_report(motion: Motion, backend: str = "stgcn", model: str | Path | None = None,
-                 hops: tuple[int, ...] = (1, 4, 8), lookahead: int = 8, threads: int = 1) -> tuple[str, dict]:
+                 hops: tuple[int, ...] = (1, 4, 8), lookahead: int = DEFAULTS["lookahead"], threads: int = 1) -> tuple[str, dict]:
     """What ``motion-style bench stgcn`` (or ``most``, ``saae``) prints, and the figures in it: one
     window on ONNX Runtime (1 and 8 performers) and the per-frame amortised cost at each hop, then
     the wall time of a session's ``step()`` streaming ``motion`` (at its rate) at each hop with

@@ -292,7 +292,7 @@ class FrameDelay:
     ``gap_seconds`` after the previous one, or not after it, starts afresh (as a session does).
     """
 
-    def __init__(self, gap_seconds: float = 0.5, keep: int = 512) -> None:
+    def __init__(self, gap_seconds: float, keep: int = 512) -> None:
         self.gap_ns = round(gap_seconds * 1e9)
         self._frames: deque[tuple[int, np.ndarray]] = deque(maxlen=keep)
 

@@ -34,6 +34,7 @@ from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.nodes import Parameters, PlayerNode, run
 from motion_style_ros.nodes.stylizer_outputs import Performer
 from motion_style_ros.runtime import stylizer_settings as settings_
+from motion_style_ros.runtime.onnx_model import neutral_style
 from motion_style_ros.runtime.performer import PerformerStream, seconds
 from motion_style_ros.runtime.references import REVERT, References
 from motion_style_ros.runtime.robot_target import RobotTarget
@@ -77,7 +78,7 @@ class StylizerBase(Parameters):
         sessions = settings_.sessions(spec, values["model"] or spec.default_model, len(prefixes), values)
         session = sessions[0]
         self.styles = session.styles
-        target = settings_.target_style(session.styles, session.card.get("neutral_style", session.styles[0]))
+        target = settings_.target_style(session.styles, neutral_style(session.card))
         values["target_style"] = self.param(target.name, target.default, target.description, read_only=False)
         self.settings = {k: values[k] for k in settings_.DYNAMIC}
         for key, value in self.settings.items():

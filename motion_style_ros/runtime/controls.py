@@ -15,6 +15,7 @@ import numpy as np
 from motion_style_ros.core.easing import smoothstep
 from motion_style_ros.core.intensity import PARTS, check_part_alpha
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime.defaults import DEFAULTS
 
 
 def unit_interval(value: float, what: str) -> float:
@@ -44,7 +45,7 @@ class Controls:
         self._primary = np.full(performers, self.style_index(style))
         self._secondary = np.zeros(performers, dtype=int)
         self._mix = np.zeros(performers)
-        self._alpha = np.ones(performers)
+        self._alpha = np.full(performers, DEFAULTS["alpha"])
         self._parts = np.ones((performers, len(PARTS)))
         self._from = self._target()
         self._progress = np.ones(performers)  # 1: blend done

@@ -7,6 +7,7 @@ windowed backend looks 8 model frames (267 ms) ahead."""
 from __future__ import annotations
 
 DEFAULTS: dict[str, float | int | bool] = {
+    "alpha": 1.0,  # the style's intensity: 0 = the performer's own motion, 1 = the full style
     "blend_seconds": 0.3,  # s a style, alpha, mix, seed or reference change blends over
     "gap_seconds": 0.5,  # s between two stamps beyond which the stream restarts
     "follow_seconds": 2.0,  # s time constant pulling the stylized trajectory towards the input's

@@ -18,6 +18,7 @@ import numpy as np
 from motion_style_ros.core.motion import Motion
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import JointStateLayout
+from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.saae import DEFAULT_MODEL, SPREAD, Sampler
 from motion_style_ros.runtime.stylizer_settings import wrong_type
 
@@ -33,7 +34,7 @@ class LearnedStream:
 
     def __init__(self, model: str | Path = DEFAULT_MODEL, style: str = "", seed: int = 0, spread: float = SPREAD,
                  fps: float = 60.0, layout: JointStateLayout | None = None, threads: int = 1,
-                 foot_lock: bool = True) -> None:
+                 foot_lock: bool = DEFAULTS["foot_lock"]) -> None:
         if not (isinstance(fps, (int, float)) and not isinstance(fps, bool) and fps > 0):
             raise MotionStyleError(f"fps must be a positive number, got {fps!r}")
         if not (isinstance(seed, int) and not isinstance(seed, bool) and 0 <= seed <= MAX_SEED):

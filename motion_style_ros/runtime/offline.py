@@ -11,6 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from motion_style_ros.runtime.defaults import DEFAULTS
+
 if TYPE_CHECKING:  # the CLI imports this module to build its parser: keep it light
     from motion_style_ros.core.motion import Motion
 
@@ -36,7 +38,7 @@ def default_model(backend: str) -> str:
     return spec(backend).default_model
 
 
-def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1, **session) -> Stylizer:
+def recurrent(model: str | None = None, alpha: float = DEFAULTS["alpha"], threads: int = 1, **session) -> Stylizer:
     """The recurrent (Style-ERD) session; ``session``: more of its settings."""
     from motion_style_ros.runtime.session import RecurrentSession
 
@@ -44,7 +46,7 @@ def recurrent(model: str | None = None, alpha: float = 1.0, threads: int = 1, **
                                                   threads=threads, **session), alpha)
 
 
-def windowed(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1,
+def windowed(backend: str, model: str | None = None, alpha: float = DEFAULTS["alpha"], threads: int = 1,
              reference: "Motion | None" = None, style: str | None = None, seed: int = 0,
              **session) -> tuple[Stylizer, str | None]:
     """A windowed backend's session (the default window, hop and lookahead unless ``session`` says
@@ -68,7 +70,7 @@ def windowed(backend: str, model: str | None = None, alpha: float = 1.0, threads
     return stylize, recognised[0] if recognised else None
 
 
-def stylizer(backend: str, model: str | None = None, alpha: float = 1.0, threads: int = 1,
+def stylizer(backend: str, model: str | None = None, alpha: float = DEFAULTS["alpha"], threads: int = 1,
              seed_spread: float | None = None, **session) -> Stylizer:
     """A backend's offline stylizer; ``seed_spread`` (backends with latent seeds): see
     ``WindowedSession``; ``session``: more session settings

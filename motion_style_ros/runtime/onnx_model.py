@@ -92,6 +92,11 @@ def read_card(model: Path) -> dict:
     return data
 
 
+def neutral_style(card: dict) -> str:
+    """The style a stream starts in: the card's ``neutral_style``, else its first style."""
+    return card.get("neutral_style", card["styles"][0])
+
+
 class OnnxModel:
     """One inference session on the CPU with its input and output names.
 

@@ -31,6 +31,7 @@ from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.backends import BACKENDS
 from motion_style_ros.runtime.contract import (
     SAAE_DECODER,
@@ -38,7 +39,7 @@ from motion_style_ros.runtime.contract import (
     SAAE_STYLE_ENCODER,
     check_card,
 )
-from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
+from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, neutral_style, read_card
 from motion_style_ros.runtime.windowed import BanklessSession, OverlapWindows, latent
 
 # the paper's best (its Tables 1 and 2), Model2 with a 5-dim style code: 'motion-style train saae'
@@ -164,7 +165,7 @@ class Sampler:
     recognised the style in 0.74 of 10 min streams (seed 1) against 0.91 with the speed limit."""
 
     def __init__(self, model: str | Path = DEFAULT_MODEL, style: str | None = None, seed: int = 0,
-                 candidates: int = 8, spread: float = SPREAD, threads: int = 1, foot_lock: bool = True) -> None:
+                 candidates: int = 8, spread: float = SPREAD, threads: int = 1, foot_lock: bool = DEFAULTS["foot_lock"]) -> None:
         self.path = model_path(str(model))
         self.card = read_card(self.path)
         check_card(self.card, self.path, "saae")
@@ -184,7 +185,7 @@ class Sampler:
         self.seed = int(seed)
         self.foot_lock = bool(foot_lock)
         latent(self.seed, 1)  # a one-line error now for a bad seed
-        self.set_style(style or self.card.get("neutral_style", self.styles[0]))
+        self.set_style(style or neutral_style(self.card))
         self.restart()
 
     def set_style(self, style: str) -> None:

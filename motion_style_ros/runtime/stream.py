@@ -67,21 +67,21 @@ from typing import Protocol
 
 import numpy as np
 
-from motion_style_ros.core import jit
-from motion_style_ros.core import rotations as rot
-from motion_style_ros.core.motion import check_frame
+from motion_style_ros.core import jit, rotations as rot
 from motion_style_ros.core.conform import ANKLES, ROLL_MIN_FRAMES, StreamGround, StreamRolls, conform_rolls
 from motion_style_ros.core.features import UP, StreamDecoder, StreamEncoder
 from motion_style_ros.core.foot_lock import FootLock
 from motion_style_ros.core.intensity import PARTS, blend, part_of_joints, toward
-from motion_style_ros.core.motion import Motion, forward_kinematics, rest_positions
+from motion_style_ros.core.motion import Motion, check_frame, forward_kinematics, rest_positions
 from motion_style_ros.core.proportions import CONTACTS, StreamScale, clip_scale
 from motion_style_ros.core.resample import Hermite, resample
 from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.core.standing import Standing
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.resources import rotation_stats
+from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.controls import Controls
+from motion_style_ros.runtime.onnx_model import neutral_style
 
 QUATERNION_TOLERANCE = 0.1  # |norm - 1| above this is rejected, below it normalised
 STAMP_TOLERANCE = 1e-6  # s: a model frame this close to an input frame takes that frame as it is
@@ -162,7 +162,7 @@ class StreamSession:
             else 1.0 - np.exp(-1.0 / (self.fps * _positive(follow_seconds, "follow time")))
         )
         self.skeleton = canonical()
-        neutral = card.get("neutral_style", self.styles[0])
+        neutral = neutral_style(card)
         self.controls = Controls(self.styles, self.performers, neutral, blend_seconds)
         self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
@@ -286,7 +286,7 @@ class StreamSession:
             pending, self._pending = self._pending, None
             self._advance(*pending)
 
-    def run(self, motion: Motion, style: str, alpha: float = 1.0, calibration: Motion | None = None
+    def run(self, motion: Motion, style: str, alpha: float = DEFAULTS["alpha"], calibration: Motion | None = None
             ) -> Motion:
         """A whole clip stylized through :meth:`step` (one performer, clip at ``input_fps``), the
         stream conditioned (arm rolls, size) from the whole clip at once, or from ``calibration``.

@@ -88,7 +88,7 @@ PARAMETERS = (
     Parameter("pipelined", DEFAULTS["pipelined"], "publish each frame before running the model frames it "
               "does not need, which then run between frames: every frame costs an interpolation on its "
               "way through, at one input frame more latency (1/input_fps)"),
-    Parameter("alpha", 1.0, "intensity of the style: 0 = the performer's own motion, exactly; 1 = the "
+    Parameter("alpha", DEFAULTS["alpha"], "intensity of the style: 0 = the performer's own motion, exactly; 1 = the "
               "full style; between, every joint turned that far towards the style", 0.0, 1.0),
     Parameter("part_alpha", [1.0] * len(PARTS), f"alpha per body part, {', '.join(PARTS)} (legs with the "
               "pelvis and the root's path), each 0 to 1: [1.0, 1.0, 0.0] restyles torso and arms and keeps "
