@@ -1,9 +1,9 @@
 """``motion-style bench``: how fast the stylizers run here, per frame and in performers."""
 
+from motion_style_ros.cli.bench_common import DEFAULT_MODEL, model_file, performer_counts, print_model
 from motion_style_ros.runtime.backends import BACKENDS
 from motion_style_ros.runtime.defaults import DEFAULTS
 
-DEFAULT_MODEL = BACKENDS["recurrent"].default_model
 MAX_PERFORMERS = 4096  # where the search for the real-time limit stops
 
 
@@ -57,46 +57,14 @@ def add_parser(subparsers):
                              help=f"the step's model with its card and companions beside it (default: the "
                                   f"shipped {spec.default_model})")
         windows.set_defaults(func=run_windows, backend=spec.name)
-    nodes = targets.add_parser(
-        "nodes", help="the stylizer node over DDS, end to end",
-        description="Start the stylizer node as its own process (reliable QoS) and stream synthetic "
-                    "walk frames to it from this command's rclpy node, header.stamp = the publish "
-                    "time; report the end-to-end latency (stamp -> arrival of the stylized frame in "
-                    "this node's DDS reader, p50/p99 in ms), the dropped frames, and the stylizer "
-                    "process's CPU use (utime + stime from /proc, in %% of one core) for each input "
-                    "rate with one performer and at the highest rate with several performers. "
-                    "Before each stylizer row, a relay node that republishes the frames as they "
-                    "came measures the same path with no stylizing: this machine's floor.",
-    )
-    nodes.add_argument("--rates", default="30,60,120", metavar="HZ,HZ,...",
-                       help="input rates with one performer (default: 30,60,120)")
-    nodes.add_argument("--performers", default="4", metavar="N,N,...",
-                       help="performers at the highest rate, each on its own topics; with several counts, "
-                            "a row pair for each and the largest count the stylizer held (default: 4)")
-    nodes.add_argument("--seconds", type=float, default=10.0,
-                       help="measured stream time per row in seconds (default: 10)")
-    nodes.add_argument("--backend", default="recurrent", choices=tuple(BACKENDS),
-                       help="the node's backend (default: recurrent)")
-    nodes.add_argument("--lookahead", type=int, default=DEFAULTS["lookahead"],
-                       help=f"windowed backends: model frames each output waits for (default: {DEFAULTS['lookahead']})")
-    nodes.add_argument("--pipelined", action="store_true",
-                       help="the node's pipelined mode: each frame is published before the model "
-                            "frames it does not need run (one input frame more latency)")
-    nodes.add_argument("--reference", default=None, metavar="CLIP.bvh",
-                       help="stgcn, most, saae: set the reference parameter to this clip and back every 2 s "
-                            "while streaming, and report the longest gap between two outputs of a "
-                            "performer against the longest gap between two inputs (the clip is read "
-                            "off the streams' thread)")
-    nodes.set_defaults(func=run_nodes)
-    from motion_style_ros.cli import faults, soak, vmc_flood
+    from motion_style_ros.cli import bench_nodes, faults, soak, vmc_flood
 
+    bench_nodes.add_parser(targets)
     soak.add_parser(targets)
     faults.add_parser(targets)
     vmc_flood.add_parser(targets)
     recurrent.add_argument("--model", default=DEFAULT_MODEL,
                            help=f"ONNX model with its card beside it (default: the shipped {DEFAULT_MODEL})")
-    nodes.add_argument("--model", default=None,
-                       help="ONNX model with its card beside it (default: the backend's shipped one)")
 
 
 def run_recurrent(args) -> int:
@@ -104,14 +72,14 @@ def run_recurrent(args) -> int:
 
     from motion_style_ros.errors import MotionStyleError
 
-    counts = _counts(args.performers)
+    counts = performer_counts(args.performers)
     if min(counts) < 1 or args.seconds <= 0 or args.input_fps <= 0:
         raise MotionStyleError("--performers, --seconds and --input-fps must be positive")
-    path = _model(args.model)
+    path = model_file(args.model)
     budget_us = 1e6 / args.input_fps
     results = {n: _time_steps(path, n, args.seconds, args.input_fps, args.threads) for n in counts}
     session = results[counts[0]][0]
-    _print_model(path, session.card)
+    print_model(path, session.card)
     print(f"input: synthetic {args.input_fps:g} Hz stream, {args.seconds:g} s per measurement; model at "
           f"{session.fps:g} Hz; output latency {1000 * session.latency:.1f} ms; "
           f"ONNX Runtime on {args.threads} thread(s)")
@@ -333,7 +301,7 @@ def _model_calls(path, card: dict, checkpoint, threads: int, seconds: float, cal
 
 
 def _time_steps(path, performers: int, seconds: float, input_fps: float, threads: int,
-                paced: bool = False, pipelined: bool = False):
+                paced: bool = False, pipelined: bool = DEFAULTS["pipelined"]):
     """The session and the wall time of each of its step() calls (microseconds) over ``seconds``
     of a synthetic walk (each performer at its own phase), so that every part of a step runs:
     features, the model, decoding and foot locking on planted feet. ``paced``: each frame comes
@@ -389,265 +357,3 @@ def _largest_real_time(path, seconds: float, input_fps: float, threads: int) -> 
         mid = (lo + hi) // 2
         lo, hi = (mid, hi) if fits(mid) else (lo, mid)
     return lo
-
-
-def _model(name: str):
-    """The model's path; a missing shipped model says how to get one."""
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.runtime.onnx_model import model_path
-
-    try:
-        return model_path(name)
-    except MotionStyleError as exc:
-        if name != DEFAULT_MODEL:
-            raise
-        raise MotionStyleError(
-            f"{exc}; train it with 'motion-style train recurrent', or time another model with "
-            "--model (e.g. a random-weight one from "
-            "motion_style_ros.training.recurrent.export_random_model)"
-        ) from None
-
-
-def _print_model(path, card: dict) -> None:
-    """Which model was timed, and whether it is a random-weight stand-in."""
-    from motion_style_ros.runtime.onnx_model import models_dir
-
-    trained = card.get("training", {}).get("data", "unknown data")
-    print(f"model: {path} ({card.get('name', path.stem)}, trained on: {trained})")
-    if "random" in str(trained):
-        shipped = ("" if (models_dir() / DEFAULT_MODEL).is_file()
-                   else f" (models/{DEFAULT_MODEL} does not exist yet)")
-        print(f"note: a random-weight model{shipped}: the timings hold for a model of its size only")
-
-
-def run_nodes(args) -> int:
-    import os
-    import tempfile
-    from pathlib import Path
-
-    import numpy as np
-
-    from motion_style_ros.cli.live import LiveGraph
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.nodes import EXECUTOR_VARIABLE, executor_choice
-    from motion_style_ros.runtime.backends import backend, with_feature
-    from motion_style_ros.runtime.onnx_model import read_card
-
-    try:
-        rates = [float(r) for r in args.rates.split(",")]
-    except ValueError:
-        raise MotionStyleError(f"--rates takes numbers separated by commas, got {args.rates!r}") from None
-    counts = _counts(args.performers)
-    if min(rates) <= 0 or args.seconds <= 0 or min(counts) < 1:
-        raise MotionStyleError("--rates, --seconds and --performers must be positive")
-    spec = backend(args.backend)
-    if args.reference and not spec.reference_clips:
-        raise MotionStyleError(f"--reference needs --backend {' or '.join(with_feature('reference_clips'))} "
-                               "(its style encoder reads the clip)")
-    from motion_style_ros.runtime.offline import default_model
-
-    path = _model(args.model or default_model(args.backend)).resolve()
-    card = read_card(path)
-    _print_model(path, card)
-    settings = {"backend": args.backend, "pipelined": args.pipelined}
-    if spec.lookahead:
-        settings["lookahead"] = args.lookahead
-        print(f"{args.backend} with lookahead {args.lookahead}: each output shows the motion of "
-              f"{1000 * args.lookahead / card['fps']:.0f} ms earlier (not in the latencies below, "
-              "which run from the input's stamp to the output's arrival)")
-    rows = [(node, rate, 1) for rate in rates for node in ("relay", "stylizer")]
-    for n in (n for n in counts if n > 1):  # the relay for as many streams: rclpy's share of the stylizer's row
-        rows += [("relay", max(rates), n), ("stylizer", max(rates), n)]
-    if args.reference:  # the reference changes at the highest rate, with the most performers
-        rows = [("relay", max(rates), 1), ("stylizer", max(rates), max(counts)),
-                ("stylizer+reference", max(rates), max(counts))]
-    delays = {rate: 1000 * _output_delay(path, args, rate) for rate in rates}  # ms, the stylizer's
-    logs = Path(tempfile.mkdtemp(prefix="motion_style_bench_"))
-    print(f"machine: {os.cpu_count()} cores, load average {_load()} (before); node logs in {logs}; the nodes "
-          f"spin in rclpy's {executor_choice()} executor ({EXECUTOR_VARIABLE})")
-    print(f"each row: a node process (reliable QoS) <- synthetic walk frames from this process, "
-          f"{NODE_WARMUP:g} s warm-up, {args.seconds:g} s measured; the relay republishes each "
-          "frame as it came (what DDS and an rclpy node cost here), the stylizer stylizes it")
-    columns = ("node", "rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)",
-               "dropped", "node p99", "CPU (%)", "bench CPU", "delay (ms)")
-    print(" ".join(f"{c:>10}" for c in columns))
-    held = []  # performer counts the stylizer held at the highest rate
-    with LiveGraph("motion_style_bench", logs) as graph:
-        for node, rate, performers in rows:
-            latency_ms, sent, node_p99, cpu, own, gaps = _stream_nodes(
-                graph, node.split("+")[0], rate, performers, args.seconds,
-                {"model": str(path), **settings} if node.startswith("stylizer") else {},
-                reference=args.reference if node.endswith("+reference") else None)
-            p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
-            delay = delays[rate] if node.startswith("stylizer") else 0.0
-            print(f"{node.split('+')[0]:>10} {rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} "
-                  f"{worst:>10.2f} {sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} "
-                  f"{own:>10.0f} {delay:>10.1f}")
-            if node == "stylizer" and rate == max(rates) and sent == len(latency_ms) and p99 <= HELD_P99_MS:
-                held.append(performers)
-            if args.reference:
-                print(f"{'':>10} longest gap between two outputs of a performer {gaps['output_ms']:.1f} ms "
-                      f"({gaps['output_ms'] * rate / 1000:.2f} input periods), between two inputs sent "
-                      f"{gaps['input_ms']:.1f} ms; added by the node {gaps['stall_ms']:.1f} ms "
-                      f"({gaps['stall_ms'] * rate / 1000:.2f} periods); reference changes {gaps['changes']}"
-                      + (" (the clip read and encoded on the node's worker thread)" if gaps["changes"] else ""))
-    if len(counts) > 1 and not args.reference:
-        print(f"the stylizer held (no frame dropped, p99 <= {HELD_P99_MS:g} ms) at {max(rates):g} Hz: "
-              + (f"{max(held)} performers" if held else "none of the counts")
-              + f" of {', '.join(map(str, sorted({1, *counts})))} tried")
-    print(f"load average {_load()} (after); node p99: the stylizer's own p99 (ms, worst performer) "
-          "from a message's arrival in its DDS reader to the stylized frame's publication, from its "
-          "/diagnostics; CPU: the node process, % of one core; bench CPU: this process's "
-          "(publishing and receiving every frame), which shares the cores; delay: how much earlier "
-          "than its stamp the motion an output shows is (the session's latency), on top of p50/p99")
-    return 0
-
-
-def _output_delay(path, args, rate: float) -> float:
-    """The stylizer's own output latency (s) at ``rate``, as its session works it out."""
-    from motion_style_ros.runtime.backends import backend
-
-    spec = backend(args.backend)
-    extra = {"lookahead": args.lookahead} if spec.lookahead else {}
-    return spec.session_class()(path, input_fps=rate, pipelined=args.pipelined, **extra).latency
-
-
-HELD_P99_MS = 10.0  # a node holds a count of performers when none drops and p99 stays within this
-NODE_WARMUP = 2.0  # s of streaming before measuring: ONNX Runtime's first runs, DDS settling
-NODE_DRAIN = 1.0  # s after the last frame for its output to arrive
-
-
-def _load() -> str:
-    import os
-
-    return " ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
-def _cpu_seconds(pid: int) -> float:
-    """User + system CPU time of a process so far (fields 14 and 15 of /proc/<pid>/stat)."""
-    import os
-
-    with open(f"/proc/{pid}/stat") as f:
-        fields = f.read().rsplit(")", 1)[1].split()  # the command name may hold spaces
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
-def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float, settings: dict,
-                  reference: str | None = None):
-    """One row: a fresh node ``name`` (stylizer or relay, with ``settings``) for ``performers``
-    performers at ``rate`` Hz; returns the latency (ms) of every measured frame that came back, how
-    many were sent, the node's own p99 (ms, its last diagnostics, worst performer; NaN without),
-    and the CPU use of the node and of this process (% of one core) over the measured interval, and
-    the longest gaps (ms) between two outputs of a performer and two inputs sent; with
-    ``reference``, the stylizer's reference parameter goes to that clip and back every 2 s."""
-    import os
-    import time
-
-    import numpy as np
-    from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import JointState
-
-    from motion_style_ros.cli.live import STARTUP_SECONDS, stamp_ns
-    from motion_style_ros.core.synthetic import synthetic_motion
-    from motion_style_ros.io.joint_state import JointStateLayout
-
-    node = graph.node
-    prefixes = [""] if performers == 1 else [f"performer{k}" for k in range(performers)]
-    settings = {"performers": prefixes, **settings}
-    if name == "stylizer":
-        settings["input_fps"] = float(rate)
-    proc = graph.start(name, qos_reliability="reliable", qos_depth=100, **settings)
-    reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    topics = [f"{p}/" if p else "" for p in prefixes]
-    publishers = [node.create_publisher(JointState, f"{t}joint_states", reliable) for t in topics]
-    arrivals: list[dict[int, int]] = [{} for _ in topics]  # per performer: stamp -> arrival
-    subscriptions = [
-        node.create_subscription(
-            JointState, f"{t}stylized/joint_states",
-            lambda msg, info, got=got: got.__setitem__(stamp_ns(msg.header.stamp),
-                                                       info["received_timestamp"]),
-            reliable)
-        for t, got in zip(topics, arrivals)]
-    node_p99: dict[str, float] = {}  # per performer, from the stylizer's last diagnostics
-    diagnostics = node.create_subscription(
-        DiagnosticArray, "/diagnostics",
-        lambda msg: node_p99.update({s.name: float(next(v.value for v in s.values
-                                                        if v.key == "latency_p99_ms"))
-                                     for s in msg.status}), 10)
-    graph.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in publishers)
-                     and all(s.get_publisher_count() >= 1 for s in subscriptions),
-                     f"the {name} for {performers} performer(s) to start", STARTUP_SECONDS)
-
-    layout = JointStateLayout.canonical()
-    # one walk for the whole stream: a looped clip would jump back, which the stylizer drops
-    frames = layout.encode_motion(synthetic_motion("walk", rate, NODE_WARMUP + seconds + 10.0)).tolist()
-    clock = node.get_clock()
-    sent: list[list[int]] = [[] for _ in topics]  # per performer: stamps sent while measuring
-    start = time.monotonic()
-    measure_from, end = start + NODE_WARMUP, start + NODE_WARMUP + seconds
-    cpu_from: list[tuple[float, float, float]] = []  # stylizer's and own CPU s, wall s at the start
-    count = 0
-    changes = []
-    if reference:
-        from rclpy.parameter import Parameter
-        from rclpy.parameter_client import AsyncParameterClient
-
-        client = AsyncParameterClient(node, "stylizer")
-        client.wait_for_services(STARTUP_SECONDS)
-
-    def publish() -> None:
-        nonlocal count
-        now = time.monotonic()
-        if now >= end:
-            return
-        if reference and now >= measure_from + 2.0 * len(changes):
-            changes.append(client.set_parameters([Parameter("reference", value=reference if len(changes) % 2 == 0
-                                                            else "")]))
-        if now >= measure_from and not cpu_from:
-            cpu_from.append((_cpu_seconds(proc.pid), _cpu_seconds(os.getpid()), now))
-        for publisher, stamps in zip(publishers, sent):
-            msg = JointState(name=layout.names, position=frames[count % len(frames)])
-            msg.header.stamp = clock.now().to_msg()
-            publisher.publish(msg)
-            if now >= measure_from:
-                stamps.append(stamp_ns(msg.header.stamp))
-        count += 1
-
-    timer = node.create_timer(1.0 / rate, publish)
-    graph.spin_until(lambda: time.monotonic() >= end, "the stream", seconds + NODE_WARMUP + 60)
-    stylizer_cpu, own_cpu, wall = cpu_from[0]
-    wall = time.monotonic() - wall
-    cpu = 100 * (_cpu_seconds(proc.pid) - stylizer_cpu) / wall
-    own = 100 * (_cpu_seconds(os.getpid()) - own_cpu) / wall
-    node_p99.clear()  # the diagnostics of the measured stream, not of the warm-up
-    graph.spin_for(NODE_DRAIN + 1.0)  # the last frames' outputs, and the next diagnostics
-    node.destroy_timer(timer)
-    node.destroy_subscription(diagnostics)
-    for publisher in publishers:
-        node.destroy_publisher(publisher)
-    for subscription in subscriptions:
-        node.destroy_subscription(subscription)
-    graph.stop(name)
-    latency = [got[s] - s for stamps, got in zip(sent, arrivals) for s in stamps if s in got]
-    output_gap = max((np.diff(sorted(got[s] for s in stamps if s in got)).max(initial=0)
-                      for stamps, got in zip(sent, arrivals)), default=0)
-    input_gap = max((np.diff(stamps).max(initial=0) for stamps in sent), default=0)
-    # What the node adds to a gap: how much later than the one before a frame came back, beyond how
-    # much later it was sent (a stall in the node delays every frame queued behind it by as much).
-    stall = max((np.diff([got[s] - s for s in stamps if s in got]).max(initial=0)
-                 for stamps, got in zip(sent, arrivals)), default=0)
-    gaps = {"output_ms": output_gap / 1e6, "input_ms": input_gap / 1e6, "stall_ms": stall / 1e6,
-            "changes": sum(f.done() and all(r.successful for r in f.result().results) for f in changes)}
-    return (np.array(latency) / 1e6, sum(map(len, sent)), max(node_p99.values(), default=np.nan),
-            cpu, own, gaps)
-
-
-def _counts(text: str) -> list[int]:
-    """``--performers``' counts: whole numbers separated by commas, or a one-line error."""
-    from motion_style_ros.errors import MotionStyleError
-
-    try:
-        return [int(n) for n in text.split(",")]
-    except ValueError:
-        raise MotionStyleError(f"--performers takes whole numbers separated by commas, got {text!r}") from None

@@ -23,11 +23,6 @@ def add_parser(targets) -> None:
     soak.set_defaults(func=run)
 
 
-def _rss_mb(pid: int) -> float:
-    with open(f"/proc/{pid}/status") as f:
-        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS:")) / 1024
-
-
 def run(args) -> int:
     import json
     import time
@@ -37,8 +32,8 @@ def run(args) -> int:
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import JointState
 
-    from motion_style_ros.cli.bench import _cpu_seconds
     from motion_style_ros.cli.live import STARTUP_SECONDS, LiveGraph, stamp_ns
+    from motion_style_ros.cli.proc import cpu_seconds, rss_mb
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.io import bags
 
@@ -61,21 +56,21 @@ def run(args) -> int:
         print(f"{args.rate:g} Hz, {args.backend}; per minute: stylizer RSS (MB), CPU (% of one core), "
               "frames in / out / dropped in that minute, end-to-end latency p50 / p99 / max (ms)")
         start, last = time.monotonic(), None
-        cpu0 = (_cpu_seconds(stylizer.pid), start)
+        cpu0 = (cpu_seconds(stylizer.pid), start)
         every: list[np.ndarray] = []  # each minute's latencies (ms), for the whole run's percentiles
         for minute in range(1, int(np.ceil(args.minutes)) + 1):
             latencies.clear()
             graph.spin_for(min(60.0, args.minutes * 60 - (minute - 1) * 60))
             now = time.monotonic()
-            cpu = 100 * (_cpu_seconds(stylizer.pid) - cpu0[0]) / (now - cpu0[1])
-            cpu0 = (_cpu_seconds(stylizer.pid), now)
+            cpu = 100 * (cpu_seconds(stylizer.pid) - cpu0[0]) / (now - cpu0[1])
+            cpu0 = (cpu_seconds(stylizer.pid), now)
             counts = {k: int(status.get(k, 0)) for k in ("frames_in", "frames_out", "dropped")}
             delta = {k: counts[k] - (last or {}).get(k, 0) for k in counts} if last else counts
             last = counts
             ms = np.array(latencies) / 1e6
             every.append(ms)
             p50, p99, worst = np.percentile(ms, [50, 99, 100]) if len(ms) else [np.nan] * 3
-            row = {"minute": minute, "rss_mb": round(_rss_mb(stylizer.pid), 1), "cpu_percent": round(cpu, 1),
+            row = {"minute": minute, "rss_mb": round(rss_mb(stylizer.pid), 1), "cpu_percent": round(cpu, 1),
                    **delta, "latency_p50_ms": round(p50, 2), "latency_p99_ms": round(p99, 2),
                    "latency_max_ms": round(worst, 2)}
             rows.append(row)
