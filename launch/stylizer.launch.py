@@ -34,19 +34,31 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 from lifecycle_msgs.msg import Transition
 
+from motion_style_ros.runtime.backends import BACKENDS, with_feature
+
 PACKAGE = 'motion_style_ros'
+
+
+def _backends(feature):
+    """The backends with ``feature``, for a help text: 'stgcn' or 'stgcn, most'."""
+    return ', '.join(with_feature(feature))
+
 
 # Launch argument -> (stylizer parameter, how to read the argument's text, description).
 STYLIZER_ARGUMENTS = {
-    'backend': ('backend', str, 'recurrent (frame by frame) or stgcn (windows, lookahead)'),
+    'backend': ('backend', str, 'the model family: ' + '; '.join(
+        f'{name} ({b.summary.split(":")[0].split(",")[0]})' for name, b in BACKENDS.items())),
     'model': ('model', str, 'ONNX model: a file name in models/ or a path'),
     'target_style': ('target_style', str, 'style to perform, one of the model card\'s styles'),
     'alpha': ('alpha', float, 'style intensity, 0 (the input) .. 1'),
     'part_alpha': ('part_alpha', yaml.safe_load,
                    'alpha per body part, torso, arms, legs, e.g. "[1.0, 1.0, 0.0]" (legs as performed)'),
-    'latent_seed': ('latent_seed', int, 'stgcn: latent seed (variation within a style)'),
-    'seed_spread': ('seed_spread', float, 'stgcn: how much seeds differ, 0 .. 4 (1: as trained)'),
-    'reference': ('reference', str, 'stgcn: a BVH clip whose style to move in'),
+    'latent_seed': ('latent_seed', int,
+                    f'{_backends("latent_seeds")}: latent seed (variation within a style)'),
+    'seed_spread': ('seed_spread', float,
+                    f'{_backends("latent_seeds")}: how much seeds differ, 0 .. 4 (1: as trained)'),
+    'reference': ('reference', str,
+                  f'{_backends("reference_clips")}: a BVH clip whose style to move in'),
     'performers': ('performers', yaml.safe_load,
                    'topic prefixes, one per performer, e.g. "[alice, bob]"'),
     'markers': ('publish_markers', yaml.safe_load,

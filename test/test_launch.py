@@ -175,3 +175,18 @@ def test_launch_testing_file_passes_under_launch_test(path, ros_cli):
 
 def test_launch_testing_files_exist():
     assert [p.name for p in LAUNCH_TESTS] == ["test_stylizer_bag.launch.py"]
+
+
+def test_show_args_lists_every_backend_and_the_readme_documents_every_argument(ros_cli):
+    """``ros2 launch motion_style_ros stylizer.launch.py --show-args``, as the README shows it: the
+    backend's help names every registered backend, and every argument is in the README's list."""
+    from motion_style_ros.runtime.backends import BACKENDS
+
+    out = ros_cli.ros2("launch", "motion_style_ros", "stylizer.launch.py", "--show-args")
+    assert out.returncode == 0, out.stderr
+    helps = dict(re.findall(r"^    '(\w+)':\n        (.*)$", out.stdout, re.M))
+    assert {"backend", "reference", "pipelined", "managed", "use_synthetic"} <= set(helps), out.stdout
+    assert all(name in helps["backend"] for name in BACKENDS), helps["backend"]
+    readme = (ROOT / "README.md").read_text()
+    launch_section = readme[readme.index("### Launch"):readme.index("## Layout")]
+    assert [a for a in helps if f"`{a}`" not in launch_section] == []
