@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from motion_style_ros.cli import eval_modes
+
 
 def _stylizers():
     from motion_style_ros.runtime.backends import BACKENDS
@@ -108,13 +110,10 @@ def add_parser(subparsers):
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
+    """Check the flags every mode shares, then run the first mode a flag picks (:data:`MODES`), else
+    the judged comparison."""
     from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.evaluation import harness
     from motion_style_ros.runtime.backends import backend, with_feature
-    from motion_style_ros.runtime.offline import default_model, stylizer
-    from motion_style_ros.runtime.onnx_model import model_path
 
     names = args.stylizer or []
     if args.reference_codes and (not names or not all(backend(n).reference_clips for n in names)):
@@ -131,44 +130,44 @@ def run(args: argparse.Namespace) -> int:
     if args.data and (args.unseen or args.controls or args.enrol or args.live or args.reference_codes):
         raise MotionStyleError("--data scores the folder's held-out takes; --unseen, --controls, --enrol, "
                                "--live and --reference-codes use the Bandai data")
-    # Build the stylizers first: a missing model fails here in one line, before the slow part.
-    stylizers = {name: stylizer(name, args.model, args.alpha, args.threads, args.seed_spread,
-                                **backend(name).settings(harness.PUBLISHED), **_overrides(args))
-                 for name in names}
-    if args.live:
-        from motion_style_ros.cli import eval_live
+    for picked, mode in MODES:
+        if picked(args):
+            return mode(args)
+    return run_judged(args)
 
-        if len(names) != 1:
-            raise MotionStyleError("--live streams one stylizer: give one --stylizer")
-        return eval_live.run(args, names[0])
-    if args.posture:
-        if not args.unseen or args.reference_codes:
-            raise MotionStyleError("--posture goes with --unseen (the CMU and Xia clips), without --reference-codes")
-        return run_posture(args, stylizers)
-    if args.unseen:
-        if args.reference_codes:  # references: Bandai test takes of the target style
-            from motion_style_ros.evaluation.references import ReferenceStylizer
 
-            clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)
-            stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed,
-                                                 session=_overrides(args))
-                         for name in names}
-        return run_unseen(args, stylizers)
-    if args.controls:
-        return run_controls(args)
-    if args.performer:
-        return run_performer(args)
-    if args.generative is not None:
-        return run_generative(args)
-    if args.enrol:
-        return run_enrolment(args)
+# The modes other than the judged comparison, in the order they take precedence when several flags are
+# given: (whether the flags pick it, the function that runs it).
+MODES = (
+    (lambda args: args.live, eval_modes.run_live),
+    (lambda args: args.posture, eval_modes.run_posture),
+    (lambda args: args.unseen, eval_modes.run_unseen),
+    (lambda args: args.controls, eval_modes.run_controls),
+    (lambda args: args.performer, eval_modes.run_performer),
+    (lambda args: args.generative is not None, eval_modes.run_generative),
+    (lambda args: bool(args.enrol), eval_modes.run_enrolment),
+)
+
+
+def run_judged(args: argparse.Namespace) -> int:
+    """Bandai's (or --data's) test takes restyled by every --stylizer and the baselines, judged by both
+    panels."""
+    from pathlib import Path
+
+    from motion_style_ros.evaluation import harness
+    from motion_style_ros.runtime.offline import default_model
+    from motion_style_ros.runtime.onnx_model import model_path
+
+    names = args.stylizer or []
+    stylizers = eval_modes.build_stylizers(args)  # before the slow part
     judges, second = _judges(args)
     clips = harness.held_out_clips(progress=not args.quiet, dataset=args.dataset, folder=args.data)
     if args.reference_codes:
         from motion_style_ros.evaluation.references import ReferenceStylizer
 
         stylizers = {name: ReferenceStylizer(clips, name, args.model, args.alpha, args.threads, args.seed,
-                                             args.same_content, _overrides(args)) for name in names}
+                                             args.same_content, eval_modes.session_overrides(args))
+                     for name in names}
     references = dict(stylizers)  # unwrapped: the consistencies switch their same_content
     for name in names:
         path = model_path(args.model or default_model(name))
@@ -205,8 +204,8 @@ def run(args: argparse.Namespace) -> int:
                else f"eval_seed_spread_{args.seed_spread:g}" if args.seed_spread is not None
                else "eval" if args.dataset == 2 or args.data else f"eval_dataset{args.dataset}")
         key += "_no_foot_lock" if args.no_foot_lock else ""
-        _record(args, key, {"settings": report["settings"], "systems": summary,
-                            **({"consistency": report["consistency"]} if consistencies else {})})
+        eval_modes.record(args, key, {"settings": report["settings"], "systems": summary,
+                                      **({"consistency": report["consistency"]} if consistencies else {})})
     for name, system in report["systems"].items():
         if system["skipped"]:
             print(f"{name}: {len(system['skipped'])} pairs skipped "
@@ -222,11 +221,6 @@ def _styles_offered(path) -> list[str]:
     from motion_style_ros.runtime.style_bank import names_beside
 
     return [*read_card(path)["styles"], *names_beside(path)]
-
-
-def _overrides(args: argparse.Namespace) -> dict:
-    """Session settings the flags change from the published ones."""
-    return {"foot_lock": False} if args.no_foot_lock else {}
 
 
 def _consistency(args: argparse.Namespace, stylizers: dict, clips: list, pairs: list) -> dict:
@@ -263,242 +257,3 @@ def _judges(args: argparse.Namespace) -> tuple[tuple, tuple | None]:
     first = tuple(Judge(path, args.threads) for path in panels[0])
     second = tuple(Judge(path, args.threads) for path in panels[1]) if all(p.is_file() for p in panels[1]) else None
     return first, second
-
-
-def run_unseen(args: argparse.Namespace, stylizers: dict) -> int:
-    import json
-    from pathlib import Path
-
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.evaluation import unseen
-    from motion_style_ros.evaluation.judges import Judge
-    from motion_style_ros.io.render import render_gif, render_png
-    from motion_style_ros.runtime.offline import default_model
-    from motion_style_ros.runtime.onnx_model import model_path, read_card
-
-    if not stylizers:
-        raise MotionStyleError("--unseen checks trained stylizers: name one with --stylizer")
-    judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
-    cards = {name: read_card(model_path(args.model or default_model(name))) for name in stylizers}
-    # clips any of the models trained on (train --unlabelled) are not unseen: every model is
-    # measured on the same others
-    trained = tuple(sorted({c for card in cards.values() for c in card["training"].get("clips", {}).get("unlabelled", [])}))
-    clips = unseen.neutral_clips(leave_out=trained)
-    if trained:
-        print(f"left out {len(trained)} clips a model trained on: {', '.join(trained)}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    reports = {}
-    for name, stylize in stylizers.items():
-        styles = cards[name]["styles"]
-        reports[name] = unseen.evaluate(stylize, styles, clips, judges, progress=not args.quiet)
-        print(f"{name}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in reports[name]["summary"].items()))
-        # Pictures: the input beside two contrasting styles, for a walk of each studio.
-        for title, source in (clips[0], clips[-1]):
-            motions, titles = [source], [title]
-            for style in ("elderly", "youthful"):
-                motions.append(stylize(source, style))
-                titles.append(f"{name}: {style}")
-                if getattr(stylize, "last_reference", None):  # the reference clip beside its output
-                    reference, motion = stylize.last_reference
-                    motions.insert(-1, motion)
-                    titles.insert(-1, f"reference {reference.removeprefix('dataset-2_')}")
-            stem = out / f"unseen_{name}_{title.split()[1]}"
-            render_png(motions, titles, stem.with_suffix(".png"))
-            render_gif(motions, titles, stem.with_suffix(".gif"), seconds=6.0)
-            print(f"wrote {stem}.png and {stem}.gif")
-    path = out / "unseen.json"
-    settings = {"alpha": args.alpha, "judges": [j.model.path.name for j in judges], "left_out": list(trained),
-                **({"foot_lock": False} if args.no_foot_lock else {}),
-                **({"references": f"Bandai dataset-{args.dataset} test takes of the target style"}
-                   if args.reference_codes else {})}
-    path.write_text(json.dumps({"settings": settings, **reports}, indent=1) + "\n")
-    print(f"wrote {path}")
-    if args.record:
-        key = ("unseen_reference_codes" if args.reference_codes else "unseen") + (
-            "_no_foot_lock" if args.no_foot_lock else "")
-        _record(args, key, {"alpha": args.alpha, **reports[args.stylizer[0]]["summary"]})
-    return 0
-
-
-def run_posture(args: argparse.Namespace, stylizers: dict) -> int:
-    import json
-    from pathlib import Path
-
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.evaluation import harness, posture, unseen
-    from motion_style_ros.runtime.offline import default_model
-    from motion_style_ros.runtime.onnx_model import model_path, read_card
-
-    if not stylizers:
-        raise MotionStyleError("--posture checks trained stylizers: name one with --stylizer")
-    shifts = posture.style_shifts(harness.held_out_clips(progress=not args.quiet))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    reports = {}
-    for name, stylize in stylizers.items():
-        card = read_card(model_path(args.model or default_model(name)))
-        # clips the model trained on (train --unlabelled) are left out, as --unseen leaves them out
-        clips = unseen.neutral_clips(leave_out=tuple(card["training"].get("clips", {}).get("unlabelled", [])))
-        reports[name] = {"clips": len(clips), **posture.evaluate(stylize, card["styles"], clips, shifts)}
-        print(f"{name} ({len(clips)} clips): " + posture.format_table(name, reports[name]).split(": ", 1)[1])
-    path = out / "posture.json"
-    settings = {"alpha": args.alpha, **({"foot_lock": False} if args.no_foot_lock else {})}
-    path.write_text(json.dumps({"settings": settings, "bandai_shifts": shifts, **reports}, indent=1) + "\n")
-    print(f"wrote {path}")
-    return 0
-
-
-def run_controls(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.evaluation import harness, windowed
-
-    if args.stylizer != ["stgcn"]:
-        raise MotionStyleError("--controls measures the windowed stylizer's controls: give --stylizer stgcn")
-    model = args.model or windowed.DEFAULT_MODEL
-    pairs = windowed.control_pairs(harness.held_out_clips(progress=not args.quiet), args.seed)
-    sources = [source for source, _ in pairs[::len(pairs) // 4]][:4]
-    report = {
-        "lookahead_costs": {"pairs": f"{len(pairs)} test takes, one per (content, style), each into "
-                                     "the next style; hop 4 (lookahead 0: hop 1)",
-                            "rows": windowed.lookahead_costs(pairs, model)},
-        "diversity": {**windowed.diversity(sources, windowed.DIVERSITY_STYLES, model),
-                      "meaning": "mean pelvis-relative joint distance between outputs of one source "
-                                 "under two latent seeds vs under two styles"},
-        "seed_spread": {"pairs": f"style accuracy on the same {len(pairs)} takes under seeds 0 and 1; "
-                                 "diversity as above",
-                        "rows": windowed.seed_spread_costs(pairs, sources, windowed.DIVERSITY_STYLES,
-                                                           model)},
-    }
-    for row in report["lookahead_costs"]["rows"]:
-        print("lookahead " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items() if k != "lookahead")
-              + f" (lookahead {row['lookahead']})")
-    for row in report["seed_spread"]["rows"]:
-        print("seed spread " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items()))
-    print("diversity: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report["diversity"].items() if k != "meaning"))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "controls.json").write_text(json.dumps(report, indent=1) + "\n")
-    print(f"wrote {out / 'controls.json'}")
-    if args.record:
-        for key, metrics in report.items():
-            _record(args, key, metrics)
-    return 0
-
-
-def run_performer(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.evaluation import harness, performer
-    from motion_style_ros.evaluation.judges import Judge
-    from motion_style_ros.io.render import render_png
-    from motion_style_ros.runtime.offline import default_model
-    from motion_style_ros.runtime.saae import Sampler
-
-    if args.stylizer != ["saae"]:
-        raise MotionStyleError("--performer measures the SAAE's learned performer: give --stylizer saae")
-    model = args.model or default_model("saae")
-    real = [(info.style, m) for info, m in harness.held_out_clips(progress=not args.quiet, dataset=args.dataset)]
-    judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
-    report = performer.evaluate(model, real, judges, args.performer_minutes, seed=args.seed,
-                                progress=not args.quiet)
-    print("learned performer: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report["summary"].items()))
-    for style, row in report["styles"].items():
-        print(f"  {style}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in row.items()))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    sampler = Sampler(model, seed=args.seed)
-    shown = [s for s in ("elderly", "youthful", "exhausted") if s in sampler.styles] or sampler.styles[:3]
-    clips = []
-    for style in shown:
-        sampler.set_style(style)
-        sampler.restart()
-        clips.append(sampler.motion(6.0))
-    render_png(clips, [f"learned performer: {s}" for s in shown], out / "performer.png")
-    (out / "performer.json").write_text(json.dumps(report, indent=1) + "\n")
-    print(f"wrote {out / 'performer.json'} and {out / 'performer.png'}")
-    if args.record:
-        _record(args, "learned_performer", report)
-    return 0
-
-
-def run_generative(args: argparse.Namespace) -> int:
-    import json
-    import shlex
-    import sys
-    from pathlib import Path
-
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.evaluation import generative
-    from motion_style_ros.runtime.onnx_model import model_path, models_dir, record_metrics
-
-    models = args.generative or sorted(str(p) for p in models_dir().glob("saae_*.onnx")
-                                       if p.with_suffix(".json").is_file())
-    if not models:
-        raise MotionStyleError("--generative found no SAAE model: train one (motion-style train saae) or name its file")
-    table = generative.table(models, seed=args.seed, threads=args.threads)
-    print(f"{'model':24s} {'Parzen LL':>12s} {'+-':>8s} {'G2T':>8s} {'T2G':>8s}")
-    for name, row in table.items():
-        print(f"{name:24s} {row['parzen_log_likelihood']:12.1f} {row['parzen_sem']:8.1f} {row['g2t']:8.3f} {row['t2g']:8.3f}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "generative.json").write_text(json.dumps(table, indent=1) + "\n")
-    print(f"wrote {out / 'generative.json'}")
-    if args.record:
-        command = "motion-style " + shlex.join(sys.argv[1:])
-        for model in models:
-            path = model_path(str(model))
-            print(f"recorded in {record_metrics(path, 'generative', {'command': command, **table[path.stem]})}")
-    return 0
-
-
-def run_enrolment(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.evaluation import windowed
-    from motion_style_ros.evaluation.judges import Judge
-
-    if len(args.stylizer) != 1:
-        raise MotionStyleError("--enrol scores one backend: give --stylizer stgcn or --stylizer most")
-    out = Path(args.out)
-    judges = [Judge("style", args.threads), Judge("style", args.threads, panel=2)]
-    report = windowed.enrolment(args.enrol, out, args.model, args.enrol_clips, args.seed, judges,
-                                progress=not args.quiet, head=args.enrol_head, backend=args.stylizer[0])
-    print(f"{args.enrol}: enrolled from {', '.join(report['enrolled_from'])} under {report['head']!r}")
-    for key in ("bandai2_test", "unseen"):
-        print(f"{key}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in report[key].items()))
-    (out / "enrolment.json").write_text(json.dumps(report, indent=1) + "\n")
-    print(f"wrote {out / 'enrolment.json'}")
-    if args.record:
-        _record(args, "enrolment", {k: v for k, v in report.items() if k != "bank"})
-    return 0
-
-
-def _record(args: argparse.Namespace, key: str, metrics: dict) -> None:
-    """Write ``metrics`` into the card of the one stylizer's model, with the command line."""
-    import shlex
-    import sys
-
-    from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.runtime.offline import default_model
-    from motion_style_ros.runtime.onnx_model import model_path, record_metrics
-
-    if len(args.stylizer or []) != 1:
-        raise MotionStyleError("--record writes into one model's card: give one --stylizer")
-    command = "motion-style " + shlex.join(sys.argv[1:])
-    path = record_metrics(model_path(args.model or default_model(args.stylizer[0])), key,
-                          {"command": command, **metrics})
-    print(f"recorded in {path}")
-
-
-def _fmt(value) -> str:
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k}: {_fmt(v)}" for k, v in value.items()) + "}"
-    return f"{value:.3g}" if isinstance(value, float) else str(value)
