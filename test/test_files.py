@@ -51,11 +51,11 @@ def test_a_file_over_its_kinds_limit_is_refused_and_the_limit_can_be_raised(tmp_
 def _readers():
     from motion_style_ros.io import bvh, urdf
     from motion_style_ros.io.joint_state import JointStateLayout
-    from motion_style_ros.runtime import onnx_model, robot_target, style_bank
+    from motion_style_ros.runtime import onnx_model, robot_body_map, style_bank
 
     return {"bvh": bvh.read, "bvh header": bvh.duration, "model": onnx_model.model_path,
             "style bank": style_bank._load, "layout": JointStateLayout.from_yaml,
-            "body map": robot_target.load_map, "urdf": urdf.read}
+            "body map": robot_body_map.load_map, "urdf": urdf.read}
 
 
 @pytest.mark.parametrize("reader", sorted(_readers()))

@@ -332,7 +332,7 @@ def test_layout_yaml(scratch, data):
 
 @st.composite
 def body_maps(draw):
-    from motion_style_ros.runtime.robot_target import MAP_KEYS
+    from motion_style_ros.runtime.robot_body_map import MAP_KEYS
 
     keys = draw(st.lists(st.sampled_from(MAP_KEYS) | st.text(max_size=5) | st.integers(), max_size=4))
     return {k: draw(st.text(max_size=8) | VALUES) for k in keys}
@@ -344,7 +344,7 @@ def body_maps(draw):
 @example(data=b"9" * 5000)  # ValueError: an int of over 4300 digits
 @example(data=b"[" * 600 + b"]" * 600)  # RecursionError
 def test_body_map_yaml(scratch, data):
-    from motion_style_ros.runtime.robot_target import MAP_KEYS, load_map
+    from motion_style_ros.runtime.robot_body_map import MAP_KEYS, load_map
 
     path = scratch / "map.yaml"
     path.write_bytes(data)

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from motion_style_ros.runtime.robot_target import RobotTarget, evaluate
+from motion_style_ros.evaluation.robot_target import evaluate
+from motion_style_ros.runtime.robot_target import RobotTarget
 from motion_style_ros.errors import MotionStyleError
 
 ROBOTS = Path(__file__).resolve().parents[1].parent / "shared" / "robots"

@@ -118,7 +118,7 @@ def run_check(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from motion_style_ros.runtime.robot_target import evaluate
+    from motion_style_ros.evaluation.robot_target import evaluate
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.evaluation.unseen import neutral_clips
 
