@@ -2,6 +2,10 @@
 BVH folder (``--data``), on any device, in one process or several under ``torchrun`` (needs torch:
 ``pip install '.[train]'``; see docs/training.md)."""
 
+from __future__ import annotations
+
+from typing import NamedTuple
+
 
 def add_parser(subparsers):
     p = subparsers.add_parser(
@@ -32,80 +36,18 @@ def add_parser(subparsers):
                         help="folder for the ONNX files and cards (default: the shipped models/)")
     _run_flags(judges)
     judges.set_defaults(func=run_judges)
-    recurrent = targets.add_parser(
-        "recurrent", help="the Style-ERD online stylizer (models/style_erd.onnx)",
-        description="Train the Style-ERD generator with its FT-Att discriminator and content network "
-                    "on Bandai dataset-2 train takes, then export the streaming step to ONNX with "
-                    "its model card. " + _RESUMABLE.format("recurrent"),
-    )
-    _budget_flags(recurrent, minutes=110.0)
-    recurrent.add_argument("--foot-weight", type=float, default=None, metavar="W",
-                           help="weight of the foot-contact loss (default: the trainer's Config, off)")
-    recurrent.add_argument("--style-adversary", type=float, default=None, metavar="W",
-                           help="weight of a style adversary on the neutral stack's output (the generator "
-                                "learns to leave the input's style out of it; not in the paper; default: "
-                                "the trainer's Config, off)")
-    _output_flags(recurrent, "style_erd.onnx and its card")
-    recurrent.set_defaults(func=run_recurrent)
-    stgcn = targets.add_parser(
-        "stgcn", help="the windowed ST-GCN stylizer (models/stgcn*.onnx)",
-        description="Train the ST-GCN generator, mapping network, style encoder and discriminator "
-                    "(Park et al. 2021) on Bandai dataset-2 train takes, then export the first "
-                    "three to ONNX with the model card. " + _RESUMABLE.format("stgcn"),
-    )
-    _budget_flags(stgcn, minutes=100.0)
-    _output_flags(stgcn, "stgcn*.onnx and the card")
-    stgcn.add_argument("--init-from", type=int, default=None, metavar="SEED",
-                       help="a new run continues this seed's checkpoint (weights, optimisers, "
-                            "iterations and time) under this run's settings")
-    stgcn.add_argument("--ds-weight", type=float, default=None, metavar="W",
-                       help="weight of the diversity loss at iteration 0, decaying linearly to 0 "
-                            "(default: 4)")
-    stgcn.add_argument("--ds-cap", type=float, default=None, metavar="M",
-                       help="diversity loss on the pelvis-relative pose, pushing two seeds apart "
-                            "until their joints differ by M metres on average (default: on the "
-                            "normalised output channels, uncapped)")
-    stgcn.set_defaults(func=run_stgcn)
-    saae = targets.add_parser(
-        "saae", help="the sequence adversarial autoencoder: plain SAAE, Model1, Model2 (models/saae_*.onnx)",
-        description="Train the sequence adversarial autoencoder of the ESANN 2018 seed (issue 21) on "
-                    "Bandai dataset-2 train takes: a GRU encoder and decoder whose content codes a "
-                    "discriminator pushes towards N(0, I); Model1's decoder takes the style label, "
-                    "Model2's a style code of --style-dim dims from the encoder; both hide the style "
-                    "from the content code through a reversed-gradient style discriminator. Exports "
-                    "the decoder, encoder (and Model2's style encoder) to ONNX with the card, as "
-                    "saae_plain, saae_model1 or saae_model2_<d>d. " + _RESUMABLE.format("<that name>"),
-    )
-    saae.add_argument("--variant", choices=("saae", "model1", "model2"), default="model2",
-                      help="saae: the plain baseline (no style input); model1: decoder takes the "
-                           "style label; model2: a style code (default: model2)")
-    saae.add_argument("--style-dim", type=int, default=5, metavar="D",
-                      help="Model2's style code size, 2 to 5 in the paper (default: 5)")
-    _budget_flags(saae, minutes=110.0)
-    _output_flags(saae, "saae_*.onnx and the card", checkpoint_of="this variant and seed")
-    saae.set_defaults(func=run_saae)
-    most = targets.add_parser(
-        "most", help="the MoST reference-clip stylizer (models/most*.onnx)",
-        description="Train MoST (Kim et al. 2024: Siamese transformer encoder, part-attentive style "
-                    "modulator, AdaIN transformer generator, discriminator) on Bandai dataset-2 train "
-                    "takes, then export the streamed step and the reference style encoder to ONNX "
-                    "with every style's mean features and the model card. " + _RESUMABLE.format("most"),
-    )
-    most.add_argument("--content-weight", type=float, default=None, metavar="W",
-                      help="weight of the content term (the transfer's frame content features against "
-                           "the input's; not in the paper; default: the trainer's Config)")
-    most.add_argument("--content-net-weight", type=float, default=None, metavar="W",
-                      help="weight of a content classifier's cross-entropy on the transfer against the "
-                           "input's content label (a content network trained on the train takes first; "
-                           "not in the paper; default: the trainer's Config, off)")
-    most.add_argument("--dec-blocks", type=int, default=None, metavar="N",
-                      help="generator blocks (the paper's code: 3; default: the trainer's Config)")
-    most.add_argument("--residual", action="store_const", const=True, default=None,
-                      help="the generator gives a change to the input's own frames, starting at none "
-                           "(not in the paper; default: the trainer's Config, off)")
-    _budget_flags(most, minutes=100.0)
-    _output_flags(most, "most*.onnx, the style means and the card")
-    most.set_defaults(func=run_most)
+    from motion_style_ros.runtime.backends import BACKENDS
+
+    for name in BACKENDS:  # a backend's trainer: its entry in TRAINERS
+        trainer = TRAINERS[name]
+        parser = targets.add_parser(name, help=trainer.help, description=trainer.description + " "
+                                    + _RESUMABLE.format(trainer.checkpoints or name))
+        _own_flags(parser, trainer, "first")
+        _budget_flags(parser, trainer.minutes)
+        _own_flags(parser, trainer, "middle")
+        _output_flags(parser, trainer.files, trainer.checkpoint_of)
+        _own_flags(parser, trainer, "last")
+        parser.set_defaults(func=globals()[f"run_{name}"])
 
 
 _DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
@@ -113,6 +55,94 @@ _DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles
 _RESUMABLE = ("Checkpoints every few minutes to ~/.cache/motion_style_ros/checkpoints/{}_<seed>/ (with "
               "losses.jsonl); --resume continues a stopped run, and the time and iteration budgets count "
               "over all resumed runs, so the same command finishes the job.")
+
+
+class Trainer(NamedTuple):
+    """What one backend's ``train`` subcommand differs by: its help and description (the note on
+    resuming follows, naming the checkpoint folder ``checkpoints``, default: the backend's name), its
+    time budget in minutes, the files it writes, its own flags (``--flag``, add_argument's keywords) and
+    where they stand: ``first``, ``middle`` (between the budgets and the output flags) or ``last``; its
+    run function is ``run_<backend>``."""
+    help: str
+    description: str
+    minutes: float
+    files: str
+    flags: tuple = ()
+    place: str = "last"
+    checkpoint_of: str = "this seed"
+    checkpoints: str | None = None
+
+
+TRAINERS = {
+    "recurrent": Trainer(
+        "the Style-ERD online stylizer (models/style_erd.onnx)",
+        "Train the Style-ERD generator with its FT-Att discriminator and content network on Bandai dataset-2 "
+        "train takes, then export the streaming step to ONNX with its model card.",
+        110.0, "style_erd.onnx and its card", place="middle", flags=(
+            ("--foot-weight", dict(type=float, default=None, metavar="W",
+                                   help="weight of the foot-contact loss (default: the trainer's Config, off)")),
+            ("--style-adversary", dict(
+                type=float, default=None, metavar="W",
+                help="weight of a style adversary on the neutral stack's output (the generator learns to leave "
+                     "the input's style out of it; not in the paper; default: the trainer's Config, off)")))),
+    "stgcn": Trainer(
+        "the windowed ST-GCN stylizer (models/stgcn*.onnx)",
+        "Train the ST-GCN generator, mapping network, style encoder and discriminator (Park et al. 2021) on "
+        "Bandai dataset-2 train takes, then export the first three to ONNX with the model card.",
+        100.0, "stgcn*.onnx and the card", flags=(
+            ("--init-from", dict(type=int, default=None, metavar="SEED",
+                                 help="a new run continues this seed's checkpoint (weights, optimisers, "
+                                      "iterations and time) under this run's settings")),
+            ("--ds-weight", dict(type=float, default=None, metavar="W",
+                                 help="weight of the diversity loss at iteration 0, decaying linearly to 0 "
+                                      "(default: 4)")),
+            ("--ds-cap", dict(type=float, default=None, metavar="M",
+                              help="diversity loss on the pelvis-relative pose, pushing two seeds apart until "
+                                   "their joints differ by M metres on average (default: on the normalised "
+                                   "output channels, uncapped)")))),
+    "saae": Trainer(
+        "the sequence adversarial autoencoder: plain SAAE, Model1, Model2 (models/saae_*.onnx)",
+        "Train the sequence adversarial autoencoder of the ESANN 2018 seed (issue 21) on Bandai dataset-2 "
+        "train takes: a GRU encoder and decoder whose content codes a discriminator pushes towards N(0, I); "
+        "Model1's decoder takes the style label, Model2's a style code of --style-dim dims from the encoder; "
+        "both hide the style from the content code through a reversed-gradient style discriminator. Exports "
+        "the decoder, encoder (and Model2's style encoder) to ONNX with the card, as saae_plain, saae_model1 "
+        "or saae_model2_<d>d.",
+        110.0, "saae_*.onnx and the card", place="first", checkpoint_of="this variant and seed",
+        checkpoints="<that name>", flags=(
+            ("--variant", dict(choices=("saae", "model1", "model2"), default="model2",
+                               help="saae: the plain baseline (no style input); model1: decoder takes the "
+                                    "style label; model2: a style code (default: model2)")),
+            ("--style-dim", dict(type=int, default=5, metavar="D",
+                                 help="Model2's style code size, 2 to 5 in the paper (default: 5)")))),
+    "most": Trainer(
+        "the MoST reference-clip stylizer (models/most*.onnx)",
+        "Train MoST (Kim et al. 2024: Siamese transformer encoder, part-attentive style modulator, AdaIN "
+        "transformer generator, discriminator) on Bandai dataset-2 train takes, then export the streamed "
+        "step and the reference style encoder to ONNX with every style's mean features and the model card.",
+        100.0, "most*.onnx, the style means and the card", place="first", flags=(
+            ("--content-weight", dict(
+                type=float, default=None, metavar="W",
+                help="weight of the content term (the transfer's frame content features against the input's; "
+                     "not in the paper; default: the trainer's Config)")),
+            ("--content-net-weight", dict(
+                type=float, default=None, metavar="W",
+                help="weight of a content classifier's cross-entropy on the transfer against the input's "
+                     "content label (a content network trained on the train takes first; not in the paper; "
+                     "default: the trainer's Config, off)")),
+            ("--dec-blocks", dict(type=int, default=None, metavar="N",
+                                  help="generator blocks (the paper's code: 3; default: the trainer's Config)")),
+            ("--residual", dict(action="store_const", const=True, default=None,
+                                help="the generator gives a change to the input's own frames, starting at none "
+                                     "(not in the paper; default: the trainer's Config, off)")))),
+}
+
+
+def _own_flags(parser, trainer: Trainer, place: str) -> None:
+    """A trainer's own flags, where they stand at ``place``."""
+    if trainer.place == place:
+        for flag, options in trainer.flags:
+            parser.add_argument(flag, **options)
 
 
 def _budget_flags(parser, minutes: float) -> None:
