@@ -87,7 +87,8 @@ def run(args: argparse.Namespace, backend: str) -> int:
     if not paths:
         raise MotionStyleError("no CMU or Xia clips found (unpack the datasets: "
                                "../shared/datasets/unpack.sh)")
-    settings = spec(backend).settings(DEFAULTS)  # the node's, written into the report
+    # the node's session settings, written into the report; the style strength is --alpha
+    settings = {k: v for k, v in spec(backend).settings(DEFAULTS).items() if k != "alpha"}
     offline = stylizer(backend, args.model, args.alpha, args.threads, **settings)
     layout = JointStateLayout.canonical()
     sk = canonical()
