@@ -146,7 +146,7 @@ def _stream(model: Path, timeline, seconds: float, out: Path):
                     params.insert(0, Parameter("target_style", value=new_style))
                     style = new_style
                 changes.append(client.set_parameters(params))
-            graph.executor.spin_once(timeout_sec=0.005)
+            graph.spin_for(0.005)
         graph.stop("synthetic_performer")
         graph.spin_for(1.0)  # frames still in flight
         graph.spin_until(lambda: all(f.done() for f in changes), "the parameter changes to answer", 10.0)
