@@ -154,7 +154,7 @@ def windowed_model(path: str | Path, styles: Sequence[str], seed: int = 0, resid
     ], encoder, STYLE_ENCODER, {"features": frames, "codes": ["batch", n_styles, style_dim],
                                 "logits": ["batch", n_styles]})
     neutral = "normal" if "normal" in styles else styles[0]
-    _write_card(path, "windowed", styles, seed, neutral_style=neutral, window=window, frames_multiple=4,
+    _write_card(path, "stgcn", styles, seed, neutral_style=neutral, window=window, frames_multiple=4,
                 style_dim=style_dim, latent_dim=latent_dim, files=files)
     return path
 

@@ -17,7 +17,7 @@ from motion_style_ros.evaluation.references import (
     pose_distance,
 )
 from motion_style_ros.io.datasets import ClipInfo, load_clip
-from motion_style_ros.runtime.windowed import WindowedSession
+from motion_style_ros.runtime.stgcn import StgcnSession
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 BANDAI = "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data"
@@ -43,7 +43,7 @@ def test_reference_stylizer_takes_its_code_from_another_content_or_the_same(rand
     out = stylize(source, "elderly")  # the run, not an elderly walk, gives the code
     assert stylize.last_reference[0] == clips[2][0].name
     assert out.n_frames == source.n_frames and np.isfinite(out.global_positions()).all()
-    session = WindowedSession(random_model, **PUBLISHED)
+    session = StgcnSession(random_model, **PUBLISHED)
     session.set_reference(clips[2][1], style="elderly")
     assert np.array_equal(out.global_positions(), session.run(source, "elderly").global_positions())
     with pytest.raises(SkipPair, match="no test take in style youthful of another content than walk"):

@@ -52,7 +52,7 @@ def test_the_windowed_stand_ins_have_the_shipped_interfaces_and_card(tmp_path):
     fake = windowed_model(tmp_path / "stgcn.onnx", card["styles"], window=card["window"],
                           style_dim=card["style_dim"], latent_dim=card["latent_dim"])
     fake_card = read_card(fake)
-    check_card(fake_card, fake, "windowed")
+    check_card(fake_card, fake, "stgcn")
     assert signature(fake) == signature(real)
     for kind in ("mapping", "style_encoder"):
         companion = signature(real.with_name(card["files"][kind]))

@@ -9,7 +9,7 @@ from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.evaluation.live import scaled, stream
 from motion_style_ros.io import bvh
-from motion_style_ros.runtime.session import RecurrentSession
+from motion_style_ros.runtime.recurrent import RecurrentSession
 
 
 def stream_scale(motion: Motion) -> list[float]:

@@ -15,7 +15,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 from motion_style_ros.runtime.controls import Controls
 from motion_style_ros.runtime.onnx_model import OnnxModel, models_dir
-from motion_style_ros.runtime.session import RecurrentSession
+from motion_style_ros.runtime.recurrent import RecurrentSession
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 CLIPS = ("dataset-2_walk_normal_010", "dataset-2_walk-turn-right_masculine_003",

@@ -145,6 +145,6 @@ def test_training_runs_resumes_identically_and_exports(data, clip, tmp_path):
                        checkpoints=tmp_path / "c", data=data, progress=False, val_every=1000)
     assert card["training"]["history"]["iterations"] == 6
     assert card["training"]["onnx_torch_max_abs_diff"] < 1e-4
-    assert card["kind"] == "windowed" and card["styles"] == list(data.styles)
+    assert card["kind"] == "stgcn" and card["styles"] == list(data.styles)
     for name in ("stgcn.onnx", "stgcn.json", "stgcn_mapping.onnx", "stgcn_style_encoder.onnx"):
         assert (tmp_path / "models" / name).is_file()

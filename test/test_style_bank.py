@@ -15,7 +15,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 from motion_style_ros.runtime import style_bank
-from motion_style_ros.runtime.windowed import WindowedSession
+from motion_style_ros.runtime.stgcn import StgcnSession
 
 STYLES = ["active", "elderly", "normal", "youthful"]
 BANDAI = "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data"
@@ -33,7 +33,7 @@ def clips(datasets):
 
 
 def test_an_enrolled_style_is_a_target_with_its_own_code(model, clips, tmp_path):
-    session = WindowedSession(model, window=16, lookahead=8)
+    session = StgcnSession(model, window=16, lookahead=8)
     entry = session.enrol(clips, TAKES)
     assert entry.head in STYLES and entry.frames == sum(m.n_frames for m in clips)  # Bandai is 30 fps
     codes = [session.reference_codes(m)[0][STYLES.index(entry.head)] for m in clips]
@@ -42,7 +42,7 @@ def test_an_enrolled_style_is_a_target_with_its_own_code(model, clips, tmp_path)
     bank = tmp_path / "bank.json"
     style_bank.write(bank, {"bouncy": entry}, "stgcn", session.model_digest)
 
-    enrolled = WindowedSession(model, window=16, lookahead=8, bank=bank)
+    enrolled = StgcnSession(model, window=16, lookahead=8, bank=bank)
     assert enrolled.styles == STYLES + ["bouncy"]
     np.testing.assert_allclose(enrolled.codes()[-1], entry.code, atol=1e-6)
     enrolled.set_seed(7)  # seeds move the model's styles, never an enrolled one
@@ -57,21 +57,21 @@ def test_an_enrolled_style_is_a_target_with_its_own_code(model, clips, tmp_path)
 
 
 def test_the_bank_beside_the_model_is_read_by_default_and_refused_by_another_model(model, clips, tmp_path):
-    session = WindowedSession(model, window=16, lookahead=8)
+    session = StgcnSession(model, window=16, lookahead=8)
     entry = session.enrol(clips[:1], TAKES[:1], head="elderly")
     assert entry.head == "elderly"
     here = tmp_path / "stgcn.onnx"
     for f in model.parent.glob("stgcn*"):
         shutil.copy(f, tmp_path / f.name)
     style_bank.write(style_bank.path_beside(here), {"mine": entry}, "stgcn", session.model_digest)
-    assert WindowedSession(here, window=16, lookahead=8).styles[-1] == "mine"
+    assert StgcnSession(here, window=16, lookahead=8).styles[-1] == "mine"
     from motion_style_ros.cli.eval import _styles_offered  # eval asks the bank's styles too
 
     assert _styles_offered(here) == [*STYLES, "mine"] and _styles_offered(model) == STYLES
     other = tmp_path / "other.json"
     style_bank.write(other, {"mine": entry}, "stgcn", "0" * 16)
     with pytest.raises(MotionStyleError, match="made for another model"):
-        WindowedSession(model, lookahead=8, bank=other)
+        StgcnSession(model, lookahead=8, bank=other)
 
 
 @pytest.mark.parametrize("content, reason", [
@@ -80,7 +80,7 @@ def test_the_bank_beside_the_model_is_read_by_default_and_refused_by_another_mod
     (None, "no finite 4-value code"),
 ])
 def test_bad_banks_are_one_line_errors(model, tmp_path, content, reason):
-    session = WindowedSession(model, window=16, lookahead=8)
+    session = StgcnSession(model, window=16, lookahead=8)
     bank = tmp_path / "bank.json"
     if content is None:  # a valid file whose code has the wrong size
         entry = style_bank.Entry((0.0,) * 4, "normal", ("a.bvh",), 10, {"normal": 1.0})
@@ -114,7 +114,7 @@ def test_the_cli_adds_lists_and_removes_styles(model, datasets, tmp_path):
     again = cli("add", "bouncy", files[0])
     assert again.returncode == 2 and "--replace" in again.stderr and "Traceback" not in again.stderr
     assert "bouncy: 3 clips" in cli("list").stdout
-    assert WindowedSession(model, lookahead=8, bank=bank).styles[-1] == "bouncy"
+    assert StgcnSession(model, lookahead=8, bank=bank).styles[-1] == "bouncy"
     short = tmp_path / "short.bvh"
     bvh.write(short, bvh.BvhClip.from_motion(synthetic_motion("walk", 30.0, 0.3), scale=100.0))
     with_short = cli("add", "brisk", files[0], str(short))
@@ -131,7 +131,7 @@ def test_the_cli_adds_lists_and_removes_styles(model, datasets, tmp_path):
 
 
 def test_a_mixed_entry_weighs_every_heads_code_by_the_classifiers_probabilities(model, clips):
-    session = WindowedSession(model, window=16, lookahead=8)
+    session = StgcnSession(model, window=16, lookahead=8)
     entry = session.enrol(clips, TAKES, head=style_bank.MIX)
     read = [session.reference_codes(m) for m in clips]
     per_clip = []

@@ -31,7 +31,7 @@ from motion_style_ros.io.joint_state import JointStateLayout, to_ros
 from motion_style_ros.nodes import EXECUTOR_VARIABLE, EXECUTORS, WithInfo, executor
 from motion_style_ros.nodes.bvh_player import load
 from motion_style_ros.nodes.stylizer import stamp_seconds
-from motion_style_ros.runtime.session import RecurrentSession
+from motion_style_ros.runtime.recurrent import RecurrentSession
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 CMU_CLIP = "cmu/data/02/02_02.bvh"  # a walk at 120 Hz

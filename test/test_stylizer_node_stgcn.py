@@ -1,7 +1,7 @@
 """The stylizer node with ``backend: stgcn`` as a real process over DDS.
 
 A random-weight ST-GCN model (the real interface) serves one performer with reliable QoS. The
-outputs are checked against an offline :class:`WindowedSession` fed the same frames and stamps;
+outputs are checked against an offline :class:`StgcnSession` fed the same frames and stamps;
 ``latent_seed`` and ``reference`` change through the real ``~/set_parameters`` service.
 """
 
@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.io.canonical import canonical_clip
-from motion_style_ros.runtime.windowed import WindowedSession
+from motion_style_ros.runtime.stgcn import StgcnSession
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 FPS = 30.0
@@ -83,7 +83,7 @@ def SEEDED(session):
 def offline(model, frames, controls=None):
     """What a fresh session with the node's settings makes of ``frames`` (JointState positions);
     ``controls[k](session)`` runs before frame k."""
-    session = WindowedSession(model, 1, FPS, follow_seconds=2.0, lookahead=LOOKAHEAD, hop=HOP)
+    session = StgcnSession(model, 1, FPS, follow_seconds=2.0, lookahead=LOOKAHEAD, hop=HOP)
     return np.array([e for e, _, _ in replay(session, LAYOUT, frames, controls)])
 
 
@@ -166,7 +166,7 @@ def test_a_reference_stays_in_use_when_the_seed_changes(node, model, frames, dat
 def test_an_enrolled_style_of_the_style_bank_is_a_target_style(model, ros_env, datasets, tmp_path):
     from motion_style_ros.runtime import style_bank
 
-    session = WindowedSession(model, lookahead=LOOKAHEAD)
+    session = StgcnSession(model, lookahead=LOOKAHEAD)
     entry = session.enrol([canonical_clip(str(datasets / REFERENCE))], ["walk_elderly"])
     bank = tmp_path / "mine.json"
     style_bank.write(bank, {"bouncy": entry}, "stgcn", session.model_digest)

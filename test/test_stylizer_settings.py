@@ -9,7 +9,7 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime import stylizer_settings as settings
 from motion_style_ros.runtime.backends import BACKENDS, with_feature
 from motion_style_ros.runtime.defaults import DEFAULTS
-from motion_style_ros.runtime.session import RecurrentSession
+from motion_style_ros.runtime.recurrent import RecurrentSession
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_VALUES = {p.name: p.default for p in settings.PARAMETERS}
@@ -97,6 +97,6 @@ def test_apply_hands_each_change_to_every_session():
 def test_windowed_sessions_run_their_windows_on_different_input_frames():
     values = {**DEFAULT_VALUES, "input_fps": 120.0}
     made = settings.sessions(BACKENDS["stgcn"], "stgcn.onnx", 3, values)
-    assert [type(s).__name__ for s in made] == ["WindowedSession"] * 3
+    assert [type(s).__name__ for s in made] == ["StgcnSession"] * 3
     assert [round(s._phase * 120) for s in made] == [0, 1, 2]
     assert all(s.lookahead == DEFAULTS["lookahead"] for s in made)

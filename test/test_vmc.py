@@ -439,7 +439,7 @@ def test_ok_states_that_say_the_pose_is_not_the_performers_are_counted(sent):
 def test_a_unity_rig_with_other_proportions_and_an_a_pose_rest_is_stylized_as_a_canonical_one(
         datasets, humanoid):
     from motion_style_ros.io.datasets import index_bandai, load_clip
-    from motion_style_ros.runtime.session import RecurrentSession
+    from motion_style_ros.runtime.recurrent import RecurrentSession
 
     info = next(i for i in index_bandai(datasets) if i.content == "walk")
     clip = load_clip(info)[:90]

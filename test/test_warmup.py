@@ -13,7 +13,7 @@ from motion_style_ros.core import rotations as rot
 from motion_style_ros.core.features import decode, encode
 from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.runtime.offline import stylizer
-from motion_style_ros.runtime.session import RecurrentSession
+from motion_style_ros.runtime.recurrent import RecurrentSession
 from motion_style_ros.runtime.warmup import warm_kernels
 
 

@@ -12,7 +12,8 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh
 from motion_style_ros.io.datasets import ClipInfo, load_clip
 from motion_style_ros.runtime.onnx_model import models_dir
-from motion_style_ros.runtime.windowed import WindowedSession, latent
+from motion_style_ros.runtime.stgcn import StgcnSession
+from motion_style_ros.runtime.windows import latent
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 BANDAI = "bandai-namco/Bandai-Namco-Research-Motiondataset-2/data"
@@ -62,7 +63,7 @@ def test_overlap_add_of_identity_windows_reproduces_the_input_exactly():
 @pytest.mark.parametrize("lookahead,hop", [(0, 4), (8, 8), (16, 4), (32, 8)])
 def test_identity_generator_streams_the_input_back_aligned(identity_model, walk, lookahead, hop):
     """Windows, overlap-add, latency, decoding and run()'s alignment add nothing of their own."""
-    session = WindowedSession(identity_model, window=48, lookahead=lookahead, hop=hop, foot_lock=False,
+    session = StgcnSession(identity_model, window=48, lookahead=lookahead, hop=hop, foot_lock=False,
                               follow_seconds=None)
     assert session.latency == pytest.approx(lookahead / 30)
     out = session.run(walk, "elderly")
@@ -71,7 +72,7 @@ def test_identity_generator_streams_the_input_back_aligned(identity_model, walk,
 
 
 def test_streaming_holds_the_first_frame_for_the_lookahead_then_lags(identity_model, walk):
-    session = WindowedSession(identity_model, window=48, lookahead=8, hop=4, foot_lock=False, conform=False,
+    session = StgcnSession(identity_model, window=48, lookahead=8, hop=4, foot_lock=False, conform=False,
                               follow_seconds=None)
     roots = walk.root_positions
     out = np.array([session.step(walk.rotations[t], roots[t], t / 30)[1] for t in range(40)])
@@ -85,7 +86,7 @@ def test_streaming_holds_the_first_frame_for_the_lookahead_then_lags(identity_mo
 
 
 def test_input_faster_than_the_model_is_resampled(identity_model, walk):
-    session = WindowedSession(identity_model, window=48, lookahead=8, input_fps=120)
+    session = StgcnSession(identity_model, window=48, lookahead=8, input_fps=120)
     frames = [session.step(walk.rotations[t // 4], walk.root_positions[t // 4], t / 120)
               for t in range(200)]
     assert len(frames) == 200 and all(np.isfinite(q).all() and np.isfinite(p).all() for q, p in frames)
@@ -96,7 +97,7 @@ def test_pipelined_windows_give_the_same_frames_one_input_frame_later(random_mod
     """A seed change between frames applies to the model frames a pipelined step left, as it
     would have without pipelining; run() aligns the pipelined output to the input the same."""
     clip = walk[:60]
-    sessions = [WindowedSession(random_model, window=16, lookahead=4, pipelined=p) for p in (False, True)]
+    sessions = [StgcnSession(random_model, window=16, lookahead=4, pipelined=p) for p in (False, True)]
     out = [[], []]
     for t in range(clip.n_frames):
         for s, o in zip(sessions, out):
@@ -115,14 +116,14 @@ def test_latent_seeds_are_deterministic_and_diverse(random_model, walk):
     assert np.allclose(latent(0, 3), [0.9184837468, 1.609997441, 0.2418246229], atol=1e-9)
     assert np.array_equal(latent(7, 16), latent(7, 16)) and not np.allclose(latent(7, 16), latent(8, 16))
     clip = walk[:90]
-    a, b = (WindowedSession(random_model, window=16, lookahead=8, latent_seed=3) for _ in range(2))
+    a, b = (StgcnSession(random_model, window=16, lookahead=8, latent_seed=3) for _ in range(2))
     out_a, out_b = a.run(clip, "elderly"), b.run(clip, "elderly")
     assert np.array_equal(out_a.global_positions(), out_b.global_positions())
     b.set_seed(4)
     other = b.run(clip, "elderly")
     assert np.abs(other.global_positions() - out_a.global_positions()).max() > 1e-3
     # mixing two seeds is interpolating their codes
-    now = WindowedSession(random_model, window=16, lookahead=8, blend_seconds=0.0)
+    now = StgcnSession(random_model, window=16, lookahead=8, blend_seconds=0.0)
     codes = {}
     for seed in (3, 4):
         now.set_seed(seed)
@@ -137,7 +138,7 @@ def test_latent_seeds_are_deterministic_and_diverse(random_model, walk):
 
 
 def test_the_seed_spread_scales_the_seeds_codes_about_their_styles_mean(random_model):
-    session = WindowedSession(random_model, window=16, lookahead=8, blend_seconds=0.0)
+    session = StgcnSession(random_model, window=16, lookahead=8, blend_seconds=0.0)
     size = int(session.card["latent_dim"])
     trained = {seed: session.mapping.run(z=np.repeat(latent(seed, size)[None], len(STYLES), 0).astype(np.float32),
                                          style=np.eye(len(STYLES), dtype=np.float32))["code"]
@@ -158,11 +159,11 @@ def test_the_seed_spread_scales_the_seeds_codes_about_their_styles_mean(random_m
         with pytest.raises(MotionStyleError, match="seed spread must be a number from 0 to 4"):
             session.set_seed(3, spread=bad)
     with pytest.raises(MotionStyleError, match="seed spread"):
-        WindowedSession(random_model, window=16, lookahead=8, seed_spread=-1.0)
+        StgcnSession(random_model, window=16, lookahead=8, seed_spread=-1.0)
 
 
 def test_bad_reference_clips_are_rejected_with_a_reason(random_model, walk, datasets):
-    session = WindowedSession(random_model, window=16, lookahead=8)
+    session = StgcnSession(random_model, window=16, lookahead=8)
     with pytest.raises(MotionStyleError, match=r"too short: 10 frames at 30 fps; it needs at least 16"):
         session.set_reference(walk[:10])
     cmu = bvh.read(next((datasets / "cmu").rglob("*.bvh"))).to_motion()
@@ -233,7 +234,7 @@ def test_reference_style_from_a_clip_of_style_s_is_recognised_as_s(datasets):
 
     judge = Judge("style")
     source = bandai(datasets, "dataset-2_walk_normal_001")  # a test take
-    session = WindowedSession(TRAINED)
+    session = StgcnSession(TRAINED)
     hits = 0
     for style in STYLES:
         reference = bandai(datasets, f"dataset-2_run_{style}_008")  # test take, another content

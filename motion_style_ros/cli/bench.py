@@ -312,7 +312,7 @@ def _time_steps(path, performers: int, seconds: float, input_fps: float, threads
     import numpy as np
 
     from motion_style_ros.core.synthetic import synthetic_motion
-    from motion_style_ros.runtime.session import RecurrentSession
+    from motion_style_ros.runtime.recurrent import RecurrentSession
 
     session = RecurrentSession(path, performers, input_fps=input_fps, threads=threads,
                                pipelined=pipelined)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from motion_style_ros.cli import eval_modes
+from motion_style_ros.runtime.defaults import DEFAULTS
 
 
 def _stylizers():
@@ -26,7 +27,8 @@ def add_parser(subparsers):
                    help="a trained stylizer to score (repeat for several; default: the baselines only)")
     p.add_argument("--model", default=None,
                    help="model file of the stylizer (default: the shipped one)")
-    p.add_argument("--alpha", type=float, default=1.0, help="style strength in [0, 1] (default: 1)")
+    p.add_argument("--alpha", type=float, default=DEFAULTS["alpha"],
+                   help=f"style strength in [0, 1] (default: {DEFAULTS['alpha']:g})")
     p.add_argument("--out", default="out/eval", help="output folder (default: out/eval)")
     p.add_argument("--pairs-per-cell", type=int, default=2, metavar="K",
                    help="test takes per (content, style) cell, each paired with every other "

@@ -38,18 +38,16 @@ def run(args) -> int:
 
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime import style_bank
-    from motion_style_ros.runtime.most import MostSession
+    from motion_style_ros.runtime.backends import BACKENDS, with_feature
     from motion_style_ros.runtime.onnx_model import model_path, read_card
-    from motion_style_ros.runtime.windowed import WindowedSession
 
     path = model_path(args.model)
-    kind = read_card(path).get("kind")
-    sessions = {"windowed": WindowedSession, "most": MostSession}  # the models with a style encoder
-    if kind not in sessions:
-        raise MotionStyleError(f"{path.name}: a {kind} model; a style bank needs a stgcn or most model "
-                               "(a style encoder)")
+    kind = read_card(path).get("kind")  # a card's kind is its backend's name
+    if kind not in BACKENDS or not BACKENDS[kind].style_bank:
+        raise MotionStyleError(f"{path.name}: a {kind} model; a style bank needs a "
+                               f"{' or '.join(with_feature('style_bank'))} model (a style encoder)")
     bank = Path(args.bank) if args.bank else style_bank.path_beside(path)
-    session = sessions[kind](path, lookahead=0, bank=bank if bank.exists() else None)  # its encoder only
+    session = BACKENDS[kind].session_class()(path, lookahead=0, bank=bank if bank.exists() else None)  # its encoder only
     known = session.styles[: len(session.card["styles"])]
     entries = dict(session.bank)
     if args.action == "list":

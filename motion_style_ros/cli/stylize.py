@@ -46,9 +46,9 @@ def run(args: argparse.Namespace) -> int:
 
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.io import bvh, render
-    from motion_style_ros.runtime.backends import backend, with_feature
     from motion_style_ros.io.canonical import canonical_clip
-    from motion_style_ros.runtime.offline import stylizer
+    from motion_style_ros.runtime.backends import backend, with_feature
+    from motion_style_ros.runtime.offline import with_reference
 
     if args.render and Path(args.render).suffix.lower() not in (".png", ".gif"):
         raise MotionStyleError(f"{args.render}: --render must end in .png or .gif")
@@ -62,18 +62,13 @@ def run(args: argparse.Namespace) -> int:
     if not args.style and not args.reference:
         raise MotionStyleError("give a target --style (or, with a backend that takes them, a --reference clip)")
     source = canonical_clip(args.input)
-    if spec.lookahead:
-        from motion_style_ros.runtime.offline import windowed
-
-        reference = canonical_clip(args.reference) if args.reference else None
-        seeds = {"seed": args.seed, "seed_spread": args.seed_spread} if spec.latent_seeds else {}
-        stylize, recognised = windowed(args.backend, args.model, args.alpha, args.threads, reference,
-                                       (args.style or [None])[0], **seeds)
-        if reference is not None:
-            print(f"{args.reference}: style read as {recognised!r}")
-            args.style = args.style or [recognised]
-    else:
-        stylize = stylizer(args.backend, args.model, args.alpha, args.threads)
+    reference = canonical_clip(args.reference) if args.reference else None
+    seeds = {"seed": args.seed, "seed_spread": args.seed_spread} if spec.latent_seeds else {}
+    stylize, recognised = with_reference(args.backend, args.model, args.alpha, args.threads, reference,
+                                         (args.style or [None])[0], **seeds)
+    if reference is not None:
+        print(f"{args.reference}: style read as {recognised!r}")
+        args.style = args.style or [recognised]
     output = Path(args.output)
     outputs = []
     for style in args.style:

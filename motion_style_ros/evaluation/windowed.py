@@ -18,7 +18,8 @@ from motion_style_ros.evaluation.metrics import foot_skating, largest_jump
 from motion_style_ros.runtime import backends
 from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import model_path, read_card
-from motion_style_ros.runtime.windowed import DEFAULT_MODEL, WindowedSession, WindowsSession
+from motion_style_ros.runtime.stgcn import DEFAULT_MODEL, StgcnSession
+from motion_style_ros.runtime.windows import WindowsSession
 
 LOOKAHEADS = (0, 8, 16, 32)
 SPREADS = (1.0, 2.0, 2.5, 3.0)
@@ -75,7 +76,7 @@ def lookahead_costs(pairs: list[tuple[Motion, str]], model: str | Path = DEFAULT
     window = int(read_card(model_path(str(model)))["window"])
 
     def stylize(lookahead: int) -> list[Motion]:
-        session = WindowedSession(model, lookahead=lookahead, hop=min(hop, lookahead + 1),
+        session = StgcnSession(model, lookahead=lookahead, hop=min(hop, lookahead + 1),
                                   follow_seconds=PUBLISHED["follow_seconds"])
         return [session.run(source, style) for source, style in pairs]
 
@@ -106,7 +107,7 @@ def diversity(sources: list[Motion], styles: list[str], model: str | Path = DEFA
     seed spread ``spread``)."""
     outs = {}
     for seed in seeds:
-        session = WindowedSession(model, latent_seed=seed, seed_spread=spread, **PUBLISHED)
+        session = StgcnSession(model, latent_seed=seed, seed_spread=spread, **PUBLISHED)
         for i, source in enumerate(sources):
             for style in styles:
                 outs[i, style, seed] = _local(session.run(source, style))
@@ -132,7 +133,7 @@ def seed_spread_costs(pairs: list[tuple[Motion, str]], sources: list[Motion], st
     for spread in spreads:
         outs, wanted = [], []
         for seed in (0, 1):
-            session = WindowedSession(model, latent_seed=seed, seed_spread=spread, **PUBLISHED)
+            session = StgcnSession(model, latent_seed=seed, seed_spread=spread, **PUBLISHED)
             outs += [session.run(source, style) for source, style in pairs]
             wanted += [style for _, style in pairs]
         labels = judge.judge(outs).labels

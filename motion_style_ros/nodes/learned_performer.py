@@ -22,7 +22,7 @@ from motion_style_ros.nodes import PlayerNode, joint_state, run
 from motion_style_ros.runtime import learned_performer as learned
 from motion_style_ros.runtime.saae import DEFAULT_MODEL, SPREAD
 from motion_style_ros.runtime.warmup import warm_kernels
-from motion_style_ros.runtime.windowed import MAX_SPREAD
+from motion_style_ros.runtime.stgcn import MAX_SPREAD
 
 NAME = "learned_performer"
 

@@ -36,9 +36,9 @@ class Backend:
 
 BACKENDS: dict[str, Backend] = {
     "recurrent": Backend("recurrent", "Style-ERD, frame by frame", "style_erd.onnx",
-                         "motion_style_ros.runtime.session:RecurrentSession"),
+                         "motion_style_ros.runtime.recurrent:RecurrentSession"),
     "stgcn": Backend("stgcn", "ST-GCN windows blended by overlap-add, latent seeds and reference clips",
-                     "stgcn.onnx", "motion_style_ros.runtime.windowed:WindowedSession",
+                     "stgcn.onnx", "motion_style_ros.runtime.stgcn:StgcnSession",
                      latent_seeds=True, reference_clips=True, style_bank=True, lookahead=True),
     "most": Backend("most", "MoST (Kim et al. 2024): windows restyled like a reference clip of any action or a "
                     "style's mean features, blended by overlap-add", "most.onnx",

@@ -52,7 +52,7 @@ MOST_STYLE = Contract(("features",), ("style", "pooled"))
 CARD_KEYS = ("kind", "styles", "fps", "feature_version")  # every stylizer's card
 KIND_KEYS: dict[str, tuple[str, ...]] = {  # and each kind's own
     "recurrent": ("state_size",),
-    "windowed": ("window", "latent_dim", "style_dim", "files"),
+    "stgcn": ("window", "latent_dim", "style_dim", "files"),
     "saae": ("window", "variant", "content_dim", "style_width", "style_inputs", "files"),
     "most": ("window", "parts", "feature_dim", "files"),
 }

@@ -1,12 +1,12 @@
 """The MoST stylizer (Kim et al. 2024) as a stream: frames in, frames out, ``lookahead`` frames
 later; the style taken from a reference motion of any action, or a style's mean.
 
-:class:`MostSession` is a :class:`~motion_style_ros.runtime.windowed.BanklessSession` (a stream
+:class:`MostSession` is a :class:`~motion_style_ros.runtime.windows.BanklessSession` (a stream
 session) around a :class:`MostStep`, the step graph of the contract :data:`~motion_style_ros.runtime.contract.MOST`
 (content encoder, part-attentive style modulator, generator) with the style side of the encoder
 (:data:`~motion_style_ros.runtime.contract.MOST_STYLE`) beside it:
 
-- **Windows.** As :mod:`~motion_style_ros.runtime.windowed` has them: the last ``window`` model
+- **Windows.** As :mod:`~motion_style_ros.runtime.windows` has them: the last ``window`` model
   frames, a window every ``hop`` frames (or when a due frame is not covered yet), blended by
   overlap-add, frame ``t`` emitted when frame ``t + lookahead`` comes in.
 - **Style features.** A style motion is its body-part style feature ``S`` and its mean content
@@ -38,14 +38,14 @@ from motion_style_ros.io import files
 from motion_style_ros.runtime import style_bank
 from motion_style_ros.runtime.contract import MOST, MOST_STYLE, check_card
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path
-from motion_style_ros.runtime.windowed import BanklessSession, OverlapWindows
+from motion_style_ros.runtime.windows import BanklessSession, OverlapWindows
 
 DEFAULT_MODEL = "most.onnx"
 
 
 class MostStep(OverlapWindows):
     """The MoST step graph at ``path`` (card ``card``, its companions beside it) as a model step:
-    :class:`~motion_style_ros.runtime.windowed.OverlapWindows`' windows and overlap-add, every
+    :class:`~motion_style_ros.runtime.windows.OverlapWindows`' windows and overlap-add, every
     performer's style features per style ``(S, 2, parts, dim)`` as its style inputs; its output
     frame is ``lookahead`` model frames behind its input."""
 
@@ -99,7 +99,7 @@ def _read_means(path: Path, styles: int, shape: tuple[int, int]) -> np.ndarray:
 
 class MostSession(BanklessSession):
     """The MoST stylizer over a stream of ``performers`` performers (see the module docstring and
-    :class:`~motion_style_ros.runtime.windowed.BanklessSession`): ``model`` the step graph's file
+    :class:`~motion_style_ros.runtime.windows.BanklessSession`): ``model`` the step graph's file
     name or path (card and companions beside it). A reference clip's style features (computed once)
     replace those of ``style`` (by default the style whose mean they are nearest)."""
 

@@ -3,7 +3,7 @@ shared by ``motion-style stylize`` and ``motion-style eval``, with the sessions'
 (:data:`motion_style_ros.runtime.defaults.DEFAULTS`, the node's) unless a caller passes others.
 
 A stylizer here is ``(source Motion on the canonical skeleton, target style) -> Motion``: the
-recurrent session, or a windowed backend's (:func:`windowed`), as the backend's registry entry says.
+session of the backend's registry entry (:func:`with_reference`).
 """
 
 from __future__ import annotations
@@ -38,20 +38,12 @@ def default_model(backend: str) -> str:
     return spec(backend).default_model
 
 
-def recurrent(model: str | None = None, alpha: float = DEFAULTS["alpha"], threads: int = 1, **session) -> Stylizer:
-    """The recurrent (Style-ERD) session; ``session``: more of its settings."""
-    from motion_style_ros.runtime.session import RecurrentSession
-
-    return _per_rate(lambda fps: RecurrentSession(model or default_model("recurrent"), input_fps=fps,
-                                                  threads=threads, **session), alpha)
-
-
-def windowed(backend: str, model: str | None = None, alpha: float = DEFAULTS["alpha"], threads: int = 1,
-             reference: "Motion | None" = None, style: str | None = None, seed: int = 0,
-             **session) -> tuple[Stylizer, str | None]:
-    """A windowed backend's session (the default window, hop and lookahead unless ``session`` says
+def with_reference(backend: str, model: str | None = None, alpha: float = DEFAULTS["alpha"], threads: int = 1,
+                   reference: "Motion | None" = None, style: str | None = None, seed: int = 0,
+                   **session) -> tuple[Stylizer, str | None]:
+    """A backend's session (the registry's class, its default settings unless ``session`` says
     otherwise), with latent seed ``seed`` where the backend has seeds and a reference clip's style
-    where it takes them (as the input of ``style``, by default the style the clip is recognised
+    where one is given (as the input of ``style``, by default the style the clip is recognised
     as); the stylizer, and the reference's style."""
     from motion_style_ros.runtime.backends import backend as spec
 
@@ -73,7 +65,7 @@ def windowed(backend: str, model: str | None = None, alpha: float = DEFAULTS["al
 def stylizer(backend: str, model: str | None = None, alpha: float = DEFAULTS["alpha"], threads: int = 1,
              seed_spread: float | None = None, **session) -> Stylizer:
     """A backend's offline stylizer; ``seed_spread`` (backends with latent seeds): see
-    ``WindowedSession``; ``session``: more session settings
+    ``StgcnSession``; ``session``: more session settings
     (:meth:`~motion_style_ros.runtime.backends.Backend.settings` keeps those a backend takes)."""
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime.backends import backend as spec
@@ -85,6 +77,4 @@ def stylizer(backend: str, model: str | None = None, alpha: float = DEFAULTS["al
             raise MotionStyleError(f"a seed spread needs backend {' or '.join(with_feature('latent_seeds'))} "
                                    f"(latent seeds); {backend} has none")
         session["seed_spread"] = seed_spread
-    if not made_by.lookahead:
-        return recurrent(model=model, alpha=alpha, threads=threads, **session)
-    return windowed(backend, model, alpha, threads, **session)[0]
+    return with_reference(backend, model, alpha, threads, **session)[0]

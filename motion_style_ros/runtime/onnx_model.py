@@ -89,7 +89,12 @@ def read_card(model: Path) -> dict:
     for key, (types, ok, what) in CARD_TYPES.items():
         if key in data and not (isinstance(data[key], types) and ok(data[key])):
             raise MotionStyleError(f"{card}: {key} must be {what}, found {str(data[key])[:40]!r}")
+    if data.get("kind") in RENAMED_KINDS:  # a card written before its kind took the backend's name
+        data["kind"] = RENAMED_KINDS[data["kind"]]
     return data
+
+
+RENAMED_KINDS = {"windowed": "stgcn"}  # a card's kind is its backend's name
 
 
 def neutral_style(card: dict) -> str:

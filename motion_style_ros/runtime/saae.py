@@ -1,14 +1,14 @@
 """The sequence adversarial autoencoder (ESANN 2018 seed) at run time, without torch: windowed
 restyling through the shared stream session, and a sampler of endless new motion from the prior.
 
-- :class:`SaaeStep` is :class:`~motion_style_ros.runtime.windowed.OverlapWindows`' windows and
+- :class:`SaaeStep` is :class:`~motion_style_ros.runtime.windows.OverlapWindows`' windows and
   overlap-add around another model: each window is encoded to its content code and decoded with the
   target's style input. Each performer has a style input per style (the card's ``style_inputs``:
   one-hot for Model1, the style's mean style code for Model2), mixed by the controls' style weights
   and blended over ``blend_seconds`` like the ST-GCN codes (the stream session applies alpha to the
   output frames). The plain SAAE has no style input, so it cannot restyle: a session refuses it.
 - :class:`SaaeSession` is the windowed stream session
-  (:class:`~motion_style_ros.runtime.windowed.BanklessSession`) with Model2's reference clips: a
+  (:class:`~motion_style_ros.runtime.windows.BanklessSession`) with Model2's reference clips: a
   clip's style code (the mean over its windows) replaces a style's input
   (:meth:`SaaeSession.set_reference`).
 - :class:`Sampler` decodes content codes drawn from the prior N(0, I) with a chosen style's input
@@ -40,7 +40,7 @@ from motion_style_ros.runtime.contract import (
     check_card,
 )
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, neutral_style, read_card
-from motion_style_ros.runtime.windowed import BanklessSession, OverlapWindows, latent
+from motion_style_ros.runtime.windows import BanklessSession, OverlapWindows, latent
 
 # the paper's best (its Tables 1 and 2), Model2 with a 5-dim style code: 'motion-style train saae'
 DEFAULT_MODEL = BACKENDS["saae"].default_model
@@ -68,7 +68,7 @@ def _style_table(card: dict, key: str) -> np.ndarray:
 
 class SaaeStep(OverlapWindows):
     """The SAAE at ``path`` (card ``card``) as a model step: windows over the history, overlap-add
-    (as :class:`~motion_style_ros.runtime.windowed.OverlapWindows` has them), every performer's
+    (as :class:`~motion_style_ros.runtime.windows.OverlapWindows` has them), every performer's
     style inputs; output ``lookahead`` model frames behind the input."""
 
     WINDOW_LEAST = 2
@@ -109,7 +109,7 @@ class SaaeStep(OverlapWindows):
 
 class SaaeSession(BanklessSession):
     """The SAAE restyler over a stream of ``performers`` performers (see the module docstring and
-    :class:`~motion_style_ros.runtime.windowed.BanklessSession`). Model2 takes reference clips: a
+    :class:`~motion_style_ros.runtime.windows.BanklessSession`). Model2 takes reference clips: a
     clip's style code becomes the input of ``style`` (by default the style its classifier
     recognises)."""
 

@@ -1,8 +1,8 @@
 """The streaming stylizer: one canonical-skeleton frame per performer in, one stylized frame out.
 
 A :class:`StreamSession` carries everything a live stream needs between calls, whatever the model;
-the model itself is a :class:`ModelStep` (:mod:`~motion_style_ros.runtime.session`'s recurrent
-step, :mod:`~motion_style_ros.runtime.windowed`'s windows; :mod:`~motion_style_ros.runtime.backends`
+the model itself is a :class:`ModelStep` (:mod:`~motion_style_ros.runtime.recurrent`'s recurrent
+step, :mod:`~motion_style_ros.runtime.windows`'s windows; :mod:`~motion_style_ros.runtime.backends`
 names them) that turns each model frame's conditioned features into stylized feature blocks:
 
 - **Rates.** The model runs on its own clock (``fps``, 30 Hz) with one model step per model frame

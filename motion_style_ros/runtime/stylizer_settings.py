@@ -17,7 +17,7 @@ from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.intake import Bounds
 from motion_style_ros.runtime.trajectory import VELOCITIES
 from motion_style_ros.runtime.warmup import warm_kernels
-from motion_style_ros.runtime.windowed import MAX_SPREAD
+from motion_style_ros.runtime.stgcn import MAX_SPREAD
 
 # Parameters that change live, with their types (checked by the node: rclpy's own message would
 # name the types by number).

@@ -108,7 +108,7 @@ def card(gen: Generator, mapping: MappingNetwork, encoder: StyleEncoder, path: P
     }
     neutral = training.get("config", {}).get("neutral", NEUTRAL)  # the run's (--neutral), else normal
     return export.stylizer_card(
-        path, "windowed", "motion style transfer over windows of frames, streamed by overlap-add; style "
+        path, "stgcn", "motion style transfer over windows of frames, streamed by overlap-add; style "
         "codes from a latent seed (mapping network) or a reference clip (style encoder)",
         cfg.styles, neutral if neutral in cfg.styles else cfg.styles[0], interface, architecture, training)
 
