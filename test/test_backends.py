@@ -3,11 +3,14 @@ with a shipped model and a session class of the real interface."""
 
 import json
 
+import numpy as np
 import pytest
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.runtime.backends import BACKENDS, backend, with_feature
+from motion_style_ros.runtime.backends import BACKENDS, Backend, backend, with_feature
+from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import model_path, read_card
+from motion_style_ros.runtime.stream import StreamSession, Stylized
 from motion_style_ros.runtime.windows import WindowsSession
 
 
@@ -34,3 +37,65 @@ def test_each_shipped_card_is_of_its_backends_kind_and_an_older_stgcn_card_still
 def test_an_unknown_backend_is_one_line_naming_the_others():
     with pytest.raises(MotionStyleError, match=f"unknown backend 'lstm'; allowed: {', '.join(BACKENDS)}$"):
         backend("lstm")
+
+
+class EchoStep:
+    """A model step of the test's own backend: every model frame's own pose back."""
+
+    delay_frames = 0
+    styles = ["echo"]
+
+    def start(self, performers: int, blend_seconds: float) -> None:
+        pass
+
+    def restart(self) -> None:
+        pass
+
+    def __call__(self, frame, style):
+        return Stylized(frame.features[:, :130], frame.features, frame.ankles, frame.lift)
+
+
+class EchoSession(StreamSession):
+    """The whole runtime module of a new frame-by-frame backend: its session around its step."""
+
+    def __init__(self, model, performers: int = 1, input_fps: float | None = None, threads: int = 1,
+                 phase_seconds: float = 0.0, **settings) -> None:
+        card = read_card(model_path(str(model)))
+        taken = {k: settings.get(k, DEFAULTS[k]) for k in
+                 ("blend_seconds", "gap_seconds", "follow_seconds", "foot_lock", "ground", "pipelined", "conform")}
+        super().__init__(card, EchoStep(), performers, input_fps, **taken, phase_seconds=phase_seconds)
+
+
+@pytest.fixture
+def echo(monkeypatch, tmp_path):
+    """A backend added as a user would: one registry entry, one session module, one model and card."""
+    model = tmp_path / "echo.onnx"
+    model.write_bytes(b"")  # the step runs no network
+    model.with_suffix(".json").write_text(json.dumps({"kind": "echo", "styles": ["echo"], "fps": 30.0,
+                                                      "neutral_style": "echo"}))
+    monkeypatch.setitem(BACKENDS, "echo", Backend("echo", "gives the performer back", str(model),
+                                                  "test_backends:EchoSession"))
+    return model
+
+
+def test_a_new_backend_is_one_registry_entry_and_its_session(echo, tmp_path, capsys):
+    """Nothing in nodes/, cli/ or evaluation/ names a backend: the offline path, the node's
+    settings and sessions, and the CLI take the new one from the registry."""
+    from motion_style_ros.cli.main import main
+    from motion_style_ros.core.synthetic import synthetic_motion
+    from motion_style_ros.io import bvh
+    from motion_style_ros.runtime import stylizer_settings
+    from motion_style_ros.runtime.offline import stylizer
+
+    walk = synthetic_motion("walk", 30.0, 2.0)
+    out = stylizer("echo")(walk, "echo")
+    assert out.n_frames == walk.n_frames and np.isfinite(out.rotations).all()
+    values = {p.name: p.default for p in stylizer_settings.PARAMETERS} | {"backend": "echo", "threads": 1}
+    spec = stylizer_settings.check_start(values)
+    sessions = stylizer_settings.sessions(spec, str(echo), 2, values)
+    assert [type(s).__name__ for s in sessions] == ["EchoSession", "EchoSession"]
+    clip = tmp_path / "walk.bvh"
+    bvh.write(clip, bvh.BvhClip.from_motion(walk, scale=100.0))
+    assert main(["stylize", str(clip), "-o", str(tmp_path / "out.bvh"), "--backend", "echo",
+                 "--style", "echo"]) == 0
+    assert "style echo" in capsys.readouterr().out and (tmp_path / "out.bvh").is_file()
