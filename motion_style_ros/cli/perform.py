@@ -6,7 +6,7 @@ def add_parser(subparsers):
     p = subparsers.add_parser(
         "perform", help="sample new motion of a style from an SAAE into a BVH file",
         description="Decode content codes drawn from the prior of a sequence adversarial autoencoder "
-                    "(issue 21; 'motion-style train saae') with a style's input into a seamless clip "
+                    "('motion-style train saae') with a style's input into a seamless clip "
                     "on the canonical skeleton (written in centimetres), as the learned_performer "
                     "node streams it: the same model, style, seed and rate give the same motion.",
     )

@@ -104,7 +104,7 @@ TRAINERS = {
                                    "output channels, uncapped)")))),
     "saae": Trainer(
         "the sequence adversarial autoencoder: plain SAAE, Model1, Model2 (models/saae_*.onnx)",
-        "Train the sequence adversarial autoencoder of the ESANN 2018 seed (issue 21) on Bandai dataset-2 "
+        "Train the sequence adversarial autoencoder of the ESANN 2018 seed on Bandai dataset-2 "
         "train takes: a GRU encoder and decoder whose content codes a discriminator pushes towards N(0, I); "
         "Model1's decoder takes the style label, Model2's a style code of --style-dim dims from the encoder; "
         "both hide the style from the content code through a reversed-gradient style discriminator. Exports "

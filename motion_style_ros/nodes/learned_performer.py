@@ -1,5 +1,6 @@
 """``learned_performer``: endless new motion of a chosen style, sampled from a trained SAAE's prior
-(issue 21), as JointState: a performer for the stylizers, a robot or an avatar with no mocap at all.
+(:mod:`motion_style_ros.runtime.learned_performer`), as JointState: a performer for the
+stylizers, a robot or an avatar with no mocap at all.
 
 The stream and the checks of the live parameters are
 :mod:`motion_style_ros.runtime.learned_performer`'s; this module is the ROS shell. ``style``

@@ -43,7 +43,7 @@ JUDGE = Contract(("features",), ("logits", "embedding"))
 SAAE_ENCODER = Contract(("features",), ("content",))
 SAAE_DECODER = Contract(("content", "style", "position"), ("output",))
 SAAE_STYLE_ENCODER = Contract(("features",), ("style_code", "logits"))
-# MoST (issue 20): the streamed step (a window, the reference's body-part style feature S and mean
+# MoST: the streamed step (a window, the reference's body-part style feature S and mean
 # content feature C, alpha from the window's own style to the reference's) and the style side of
 # its encoder, run once per reference clip.
 MOST = Contract(("features", "style", "pooled", "alpha"), ("output",))
