@@ -19,7 +19,6 @@ the sessions are :mod:`motion_style_ros.runtime.stylizer_settings`'.
 from __future__ import annotations
 
 import sys
-from collections import deque
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -29,14 +28,13 @@ from rclpy.subscription import MessageInfo
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.nodes import Parameters, PlayerNode, run
 from motion_style_ros.nodes.stylizer_outputs import Performer
 from motion_style_ros.runtime import stylizer_settings as settings_
 from motion_style_ros.runtime.onnx_model import neutral_style
 from motion_style_ros.runtime.performer import PerformerStream, seconds
-from motion_style_ros.runtime.references import REVERT, References
+from motion_style_ros.runtime.live_settings import LiveSettings
 from motion_style_ros.runtime.robot_target import RobotTarget
 from motion_style_ros.runtime.trajectory import Chunker
 
@@ -58,8 +56,7 @@ class StylizerBase(Parameters):
     def _setup(self) -> None:
         """What every stylizer node does first: the parameter callbacks."""
         self.performers: list[Performer] = []
-        self._pending: deque[dict] = deque()  # checked parameter changes, for the streams' thread
-        self._reverting: str | None = None
+        self.live: LiveSettings | None = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._post_set_parameters)
 
@@ -77,13 +74,8 @@ class StylizerBase(Parameters):
         prefixes = values["performers"]
         sessions = settings_.sessions(spec, values["model"] or spec.default_model, len(prefixes), values)
         session = sessions[0]
-        self.styles = session.styles
         target = settings_.target_style(session.styles, neutral_style(session.card))
         values["target_style"] = self.param(target.name, target.default, target.description, read_only=False)
-        self.settings = {k: values[k] for k in settings_.DYNAMIC}
-        for key, value in self.settings.items():
-            if reason := settings_.problem(key, value, self.styles, spec):
-                raise MotionStyleError(f"parameter {key}: {reason}")
         bounds = settings_.bounds(values)
         period_ns = round(1e9 / session.input_fps)
 
@@ -98,85 +90,38 @@ class StylizerBase(Parameters):
             p.stream = PerformerStream(p.input, s, self.layout, bounds, chunker(), p, self.get_logger(),
                                        robot, robot and chunker())
             self.performers.append(p)
-        self.references = References(session, self._pending, self.get_logger().error,
-                                     "the latent seed" if spec.latent_seeds else "the styles' own inputs")
-        self._reference = None  # the codes of the reference parameter's clip, once read
-        if self.settings["reference"]:
-            self.references.staged[self.settings["reference"]] = self.references.read(self.settings["reference"])
-        self._apply(self.settings)
+        self.live = LiveSettings(sessions, spec, values, self.get_logger().error)
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._timer = self.create_timer(1.0, self._publish_diagnostics)
         self._reset_service = self.create_service(Trigger, "~/reset", self._reset)
         self.get_logger().info(
             f"stylizing {', '.join(p.input for p in self.performers)} "
             f"with {session.model.path.name} ({spec.name}, {session.fps:g} Hz model, "
-            f"{1e3 * session.latency:.1f} ms latency) into {self.settings['target_style']!r}")
+            f"{1e3 * session.latency:.1f} ms latency) into {self.live.values['target_style']!r}")
 
     # --- parameters ---------------------------------------------------------------------------
 
     def _on_set_parameters(self, parameters) -> SetParametersResult:
-        """Check a change; nothing changes until it is applied."""
-        changes = {p.name: p.value for p in parameters if p.name in settings_.DYNAMIC}
+        """Check a change; nothing changes until it is applied (runtime.live_settings)."""
         if not self.performers:  # a managed node not configured yet: checked at configure
             return SetParametersResult(successful=True)
-        for key, value in changes.items():
-            if reason := settings_.problem(key, value, self.styles, self.spec):
-                return SetParametersResult(successful=False, reason=reason)
-        path = changes.get("reference")
-        if path and path != self._reverting:
-            try:
-                self.references.check(path)
-            except MotionStyleError as exc:
-                return SetParametersResult(successful=False, reason=" ".join(str(exc).split()))
-        return SetParametersResult(successful=True)
+        reason = self.live.check({p.name: p.value for p in parameters if p.name in settings_.DYNAMIC})
+        return SetParametersResult(successful=reason is None, reason=reason or "")
 
     def _post_set_parameters(self, parameters) -> None:
-        """Queue an accepted change for the executor's next frame; a new reference clip first goes
-        to a worker thread, which queues it once it is read."""
-        changes = {p.name: p.value for p in parameters if p.name in settings_.DYNAMIC}
-        if not changes or not self.performers:
-            return
-        path = changes.get("reference")
-        reverting, self._reverting = "reference" in changes and path == self._reverting, None
-        if reverting and path:
-            self.references.staged[path] = self._reference
-        elif path:
-            self.references.load(path, self.settings["reference"], changes)
-            return
-        self._pending.append(changes)
+        if self.performers:
+            self.live.accept({p.name: p.value for p in parameters if p.name in settings_.DYNAMIC})
 
     def _apply_pending(self) -> None:
-        while self._pending:
-            changes = self._pending.popleft()
-            if REVERT in changes:
-                self._reverting = changes[REVERT]
-                self.set_parameters([Parameter("reference", value=self._reverting)])
-                continue
-            self._apply(changes)
-            self.settings.update(changes)
-
-    def _apply(self, changes: dict) -> None:
-        """Hand changed controls to every session (runtime.stylizer_settings.apply). A reference
-        clip was read (and checked) when it was set; it stays in use when the target style or the
-        seed changes, without being read again."""
-        settings = {**self.settings, **changes}
-        reference = None
-        if self.spec.reference_clips and settings["reference"] and (
-                {"reference", "target_style", "latent_seed", "seed_spread"} & changes.keys()):
-            reference = (self.references.staged.pop(settings["reference"]) if "reference" in changes
-                         else self._reference)
-        if "reference" in changes or reference is not None:
-            self._reference = reference  # None once the parameter is emptied
-        settings_.apply([p.stream.session for p in self.performers], self.spec, self.settings, changes,
-                        reference)
+        self.live.apply_pending(lambda path: self.set_parameters([Parameter("reference", value=path)]))
 
     # --- streaming ------------------------------------------------------------------------------
 
     def on_state(self, p: Performer, msg: JointState, info: MessageInfo) -> None:
-        if self._pending:
+        if self.live.pending:
             self._apply_pending()
         p.stream.frame(msg.name, msg.position, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
-                       info["received_timestamp"], self.settings["frame_id"] or msg.header.frame_id)
+                       info["received_timestamp"], self.live.values["frame_id"] or msg.header.frame_id)
 
     # --- service and diagnostics --------------------------------------------------------------
 
@@ -189,19 +134,19 @@ class StylizerBase(Parameters):
         return response
 
     def _publish_diagnostics(self) -> None:
-        if self._pending:
+        if self.live.pending:
             self._apply_pending()
         array = DiagnosticArray()
         for p in self.performers:
-            level, message, values = p.stream.status(self.settings, self.backend, self.max_latency_ms)
+            level, message, values = p.stream.status(self.live.values, self.backend, self.max_latency_ms)
             array.status.append(DiagnosticStatus(
                 level=LEVELS[level], name=f"{self.get_name()}: {p.input}", message=message,
                 hardware_id=p.stream.session.model.path.name,
                 values=[KeyValue(key=k, value=str(v)) for k, v in values.items()]))
-        if self.references.failure:  # the last clip asked for could not be used (its set was undone)
+        if failure := self.live.references.failure:  # the last clip asked for could not be used (undone)
             array.status.append(DiagnosticStatus(
                 level=DiagnosticStatus.WARN, name=f"{self.get_name()}: reference",
-                message=f"reference clip unusable: {self.references.failure}"))
+                message=f"reference clip unusable: {failure}"))
         array.header.stamp = self.get_clock().now().to_msg()
         self._diagnostics.publish(array)
 
@@ -227,7 +172,7 @@ class StylizerBase(Parameters):
                                (self._diagnostics, self.destroy_publisher)):
             destroy(thing)
         self.performers = []
-        self._pending.clear()
+        self.live = None
 
 
 class Stylizer(StylizerBase, PlayerNode):

@@ -77,7 +77,7 @@ class Performer:
         marker = Marker(ns=self.prefix or "stylizer", id=0, type=Marker.LINE_LIST, action=Marker.ADD,
                         points=[Point(x=x, y=y, z=z) for x, y, z in ends.tolist()])
         marker.header.stamp = stamp
-        marker.header.frame_id = self.node.settings["frame_id"] or "world"
+        marker.header.frame_id = self.node.live.values["frame_id"] or "world"
         marker.pose.orientation.w = 1.0
         marker.scale.x = 0.03  # line width, m
         marker.color.r, marker.color.g, marker.color.b, marker.color.a = 0.95, 0.45, 0.1, 1.0
