@@ -10,7 +10,8 @@ from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.backends import BACKENDS, Backend, backend, with_feature
 from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import model_path, read_card
-from motion_style_ros.runtime.stream import StreamSession, Stylized
+from motion_style_ros.runtime.model_step import Stylized
+from motion_style_ros.runtime.stream import StreamSession
 from motion_style_ros.runtime.windows import WindowsSession
 
 

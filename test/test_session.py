@@ -475,7 +475,7 @@ def test_an_anchored_root_is_only_ever_held_back(clips):
 
 def test_calibration_says_what_the_stream_has_shown(model):
     from motion_style_ros.core.synthetic import synthetic_motion
-    from motion_style_ros.runtime.stream import describe_calibration
+    from motion_style_ros.runtime.performer import describe_calibration
 
     walk, wave = synthetic_motion("walk", 30.0, 4.0), synthetic_motion("wave", 30.0, 4.0)
     session = RecurrentSession(model)

@@ -1,6 +1,6 @@
 """The stylizer backends: one entry each, asked by every caller (node, CLI, evaluation, bench)
 instead of comparing backend names. Adding a backend is one entry here, its model-step module (a
-:class:`~motion_style_ros.runtime.stream.ModelStep` and the :class:`~motion_style_ros.runtime.stream.StreamSession`
+:class:`~motion_style_ros.runtime.model_step.ModelStep` and the :class:`~motion_style_ros.runtime.stream.StreamSession`
 subclass that builds it, with the backend's own controls), its contract in
 :mod:`~motion_style_ros.runtime.contract`, its trainer and its card."""
 

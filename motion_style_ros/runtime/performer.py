@@ -25,7 +25,6 @@ from motion_style_ros.io.joint_state import FrameDelay, JointStateLayout, to_ros
 from motion_style_ros.runtime.health import health
 from motion_style_ros.runtime.intake import DROP_REASONS, RESTART_REASONS, Bounds, Dropped, Intake
 from motion_style_ros.runtime.robot_target import RobotTarget
-from motion_style_ros.runtime.stream import describe_calibration
 from motion_style_ros.runtime.trajectory import Chunk, Chunker
 
 WARN_EVERY = 10.0  # s between two warnings of the same kind
@@ -239,3 +238,14 @@ def seconds(ns: int) -> float:
     """A stamp in nanoseconds as the session's float seconds (offline replays convert stamps the
     same way)."""
     return ns // 1_000_000_000 + (ns % 1_000_000_000) * 1e-9
+
+
+def describe_calibration(calibration: dict) -> str:
+    """One line for a log: what :meth:`StreamSession.calibration` found."""
+    if calibration["state"] == "off":
+        return "stream conditioning is off"
+    line = (f"stream measured ({calibration['state']}): arm rolls {calibration['arm_rolls_deg']} deg, "
+            f"size {calibration['scale']:g} of the training performers'")
+    if calibration["state"] == "arms never hung":
+        line += "; the arms stay as they come until they hang by the body for a moment"
+    return line

@@ -20,7 +20,8 @@ from motion_style_ros.runtime.backends import BACKENDS
 from motion_style_ros.runtime.contract import RECURRENT, check_card
 from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
-from motion_style_ros.runtime.stream import ModelFrame, StreamSession, Stylized
+from motion_style_ros.runtime.model_step import ModelFrame, Stylized
+from motion_style_ros.runtime.stream import StreamSession
 
 
 class RecurrentStep:

@@ -62,9 +62,6 @@ The settings' defaults are :data:`motion_style_ros.runtime.defaults.DEFAULTS`, t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Protocol
-
 import numpy as np
 
 from motion_style_ros.core import jit, rotations as rot
@@ -80,6 +77,7 @@ from motion_style_ros.core.standing import Standing
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.resources import rotation_stats
 from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.model_step import ModelFrame, ModelStep
 from motion_style_ros.runtime.controls import Controls
 from motion_style_ros.runtime.onnx_model import neutral_style
 
@@ -87,45 +85,6 @@ QUATERNION_TOLERANCE = 0.1  # |norm - 1| above this is rejected, below it normal
 STAMP_TOLERANCE = 1e-6  # s: a model frame this close to an input frame takes that frame as it is
 LOCK_RAMP = 0.25  # the legs' intensity at which foot locking is full (it grows from 0 at 0)
 _LEGS = PARTS.index("legs")
-
-
-@dataclass(frozen=True)
-class ModelFrame:
-    """One model frame of every performer as the stream hands it to a model step."""
-
-    features: np.ndarray  # (P, F) encode() features, conditioned as the training data would show them
-    ankles: np.ndarray  # (P, 2, 3) the input's ankles (what foot locks read)
-    lift: np.ndarray  # (P, 3) what grounding took off the input and the output gets back
-    fresh: np.ndarray  # (P,) bool: the performer starts afresh on this frame
-    restate: np.ndarray  # (P,) bool: fresh, or its rig just measured (remembered context is stale)
-
-
-@dataclass(frozen=True)
-class Stylized:
-    """A model step's output frame: the stylized ``[root | rot6d]`` blocks ``(P, n_out)`` and the
-    input frame they belong to (``delay_frames`` model frames back): its features, ankles, lift."""
-
-    blocks: np.ndarray
-    features: np.ndarray
-    ankles: np.ndarray
-    lift: np.ndarray
-
-
-class ModelStep(Protocol):
-    """A backend's model inside a :class:`StreamSession`: one call per model frame."""
-
-    delay_frames: int  # model frames by which its output frame lags its input frame
-    styles: list[str]  # the card's styles and any of its own (a style bank's), as controls see them
-
-    def start(self, performers: int, blend_seconds: float) -> None:
-        """Make the per-performer state, once the stream's settings are checked."""
-
-    def restart(self) -> None:
-        """Forget the stream (a start or a gap)."""
-
-    def __call__(self, frame: ModelFrame, style: np.ndarray) -> Stylized:
-        """The stylized frame for this model frame (the full style: the session applies alpha),
-        with the controls' style weights ``(P, S)``."""
 
 
 class StreamSession:
@@ -528,17 +487,6 @@ class StreamSession:
 
 
 _IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
-
-
-def describe_calibration(calibration: dict) -> str:
-    """One line for a log: what :meth:`StreamSession.calibration` found."""
-    if calibration["state"] == "off":
-        return "stream conditioning is off"
-    line = (f"stream measured ({calibration['state']}): arm rolls {calibration['arm_rolls_deg']} deg, "
-            f"size {calibration['scale']:g} of the training performers'")
-    if calibration["state"] == "arms never hung":
-        line += "; the arms stay as they come until they hang by the body for a moment"
-    return line
 
 
 def _positive(value: float, what: str) -> float:

@@ -24,7 +24,8 @@ from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.io.joint_state import JointStateLayout, rotation_values, rotations_from_values
 from motion_style_ros.io.resources import rotation_stats
 from motion_style_ros.runtime.defaults import DEFAULTS
-from motion_style_ros.runtime.stream import ModelFrame, StreamSession, Stylized
+from motion_style_ros.runtime.model_step import ModelFrame, Stylized
+from motion_style_ros.runtime.stream import StreamSession
 
 _CARD = {"styles": ["echo"], "fps": 30.0, "neutral_style": "echo"}
 

@@ -32,7 +32,8 @@ from motion_style_ros.core.standing import ROOT_MOTION
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.defaults import DEFAULTS
 from motion_style_ros.runtime.onnx_model import model_path, read_card
-from motion_style_ros.runtime.stream import ModelFrame, StreamSession, Stylized
+from motion_style_ros.runtime.model_step import ModelFrame, Stylized
+from motion_style_ros.runtime.stream import StreamSession
 
 def latent(seed: int, size: int) -> np.ndarray:
     """``size`` standard normal numbers from ``seed``, the same on every machine and numpy version:
