@@ -48,3 +48,37 @@ def test_a_test_that_needs_torch_says_so(path):
              if name.split(".")[0] == "torch" or name.startswith(("motion_style_ros.training", "motion_style_ros.models"))}
     if wants:
         assert 'importorskip("torch"' in path.read_text(), f"{path.name} imports {sorted(wants)}"
+
+
+def module_imports(path: Path) -> set[str]:
+    """The package modules ``path`` imports when it is imported (not inside functions, not for
+    type checking only)."""
+    found = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) or (
+                isinstance(node, ast.If) and "TYPE_CHECKING" in ast.dump(node.test)):
+            continue
+        for n in ast.walk(node):
+            if isinstance(n, ast.ImportFrom) and n.module and n.module.startswith("motion_style_ros"):
+                found |= {f"{n.module}.{a.name}" for a in n.names} | {n.module}
+            elif isinstance(n, ast.Import):
+                found |= {a.name for a in n.names if a.name.startswith("motion_style_ros")}
+    return found
+
+
+def test_no_import_cycle():
+    modules = {".".join(p.relative_to(PACKAGE.parent).with_suffix("").parts).removesuffix(".__init__"): p
+               for p in PACKAGE.rglob("*.py")}
+    graph = {m: module_imports(p) & modules.keys() - {m} for m, p in modules.items()}
+    done: set[str] = set()
+
+    def visit(module: str, path: tuple[str, ...]) -> None:
+        assert module not in path, f"import cycle: {' -> '.join(path[path.index(module):] + (module,))}"
+        if module in done:
+            return
+        for imported in graph[module]:
+            visit(imported, path + (module,))
+        done.add(module)
+
+    for module in sorted(graph):
+        visit(module, ())
