@@ -11,7 +11,7 @@ def add_parser(subparsers):
                     "the stylizer node read, so target_style accepts the new name. Clips are BVH "
                     "files of any humanoid rig the package retargets. Experimental: neither shipped "
                     "model renders a style it was not trained on from a few clips yet ('proud' "
-                    "enrolled from 4 takes was recognised on 0-4 %% of outputs by both judge panels, "
+                    "enrolled from 4 takes was recognised on 0-4 % of outputs by both judge panels, "
                     "where its real takes are recognised; motion-style eval --stylizer stgcn --enrol "
                     "proud; docs/models.md).",
     )
