@@ -83,6 +83,11 @@ def _stylizer(context, *args, **kwargs):
                                    f'{parameter} ({STYLIZER_ARGUMENTS[argument][2]})') from None
     common = dict(namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
                   parameters=[LaunchConfiguration('params_file'), overrides])
+    workers = LaunchConfiguration('workers').perform(context)
+    if not workers.isdigit() or int(workers) < 1:
+        raise RuntimeError(f'launch argument workers:={workers!r} is not a number of processes >= 1')
+    if int(workers) > 1:
+        return _workers(context, int(workers), overrides)
     if LaunchConfiguration('managed').perform(context) != 'true':
         return [Node(package=PACKAGE, executable='stylizer', name='stylizer', **common)]
     # The managed node, brought to active: configure now, activate once it is inactive.
@@ -97,6 +102,27 @@ def _stylizer(context, *args, **kwargs):
         target_lifecycle_node=node, goal_state='inactive',
         entities=[change(Transition.TRANSITION_ACTIVATE)], handle_once=True))
     return [node, activate, change(Transition.TRANSITION_CONFIGURE)]
+
+
+def _workers(context, count, overrides):
+    """``count`` stylizer processes, ``stylizer_0`` ... (ROS 2 runs one Python thread per process:
+    more processes use more cores), each with the params file's values and the overrides, and
+    every ``count``-th performer of ``performers`` from the k-th."""
+    if LaunchConfiguration('managed').perform(context) == 'true':
+        raise RuntimeError('launch arguments workers and managed:=true do not combine')
+    path = Path(LaunchConfiguration('params_file').perform(context))
+    data = yaml.safe_load(path.read_text(encoding='utf-8')) or {}
+    # The params file's keys name the node "stylizer"; the workers have names of their own.
+    keys = [k for k in ('/**/stylizer', 'stylizer', '/stylizer', '/**') if k in data]
+    values = {**(data[keys[0]].get('ros__parameters', {}) if keys else {}), **overrides}
+    performers = list(values.get('performers', ['']))
+    if count > len(performers):
+        raise RuntimeError(f'launch argument workers:={count} is more than the {len(performers)} '
+                           f'performers {performers}: give at least one performer per worker')
+    return [Node(package=PACKAGE, executable='stylizer', name=f'stylizer_{k}',
+                 namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
+                 parameters=[{**values, 'performers': performers[k::count]}])
+            for k in range(count)]
 
 
 def _robot_state_publisher(context, *args, **kwargs):
@@ -125,6 +151,9 @@ def generate_launch_description():
         *(DeclareLaunchArgument(name, default_value='',
                                 description=f'{text}; empty: from params_file')
           for name, (_, _, text) in STYLIZER_ARGUMENTS.items()),
+        DeclareLaunchArgument('workers', default_value='1',
+                              description='stylizer processes to share the performers out over '
+                                          '(round robin): stylizer_0, stylizer_1, ... when above 1'),
         DeclareLaunchArgument('managed', default_value='false', choices=['true', 'false'],
                               description='run the stylizer as a managed (lifecycle) node, '
                                           'brought to active'),

@@ -34,7 +34,7 @@ BIN = Path(sys.executable).parent
 # A domain apart from conftest.py's (1 + pid % 100), which the in-process tests use.
 DOMAIN = 101 + os.getpid() % 100
 DISCOVERY = "5"  # --timeout: seconds a ros2 param verb waits for the node it is asked about
-SPIN = "1.5"  # --spin-time: seconds a verb without --timeout spins to discover the graph
+SPIN = "1.0"  # --spin-time: seconds a verb without --timeout spins to discover the graph
 ERROR_LINE = re.compile(r"\[ERROR\]|Traceback|Failed to publish|context is invalid")
 
 
@@ -148,7 +148,16 @@ class RosCli:
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
-            pytest.fail(f"{' '.join(proc.args[:3])} did not stop within {timeout} s of signal {sig}")
+            log = proc.log.read_text() if getattr(proc, "log", None) else ""
+            pytest.fail(f"{' '.join(proc.args)} did not stop within {timeout} s of its signal; "
+                        f"its output:\n{log}")
+
+    def ctrl_c(self, proc: subprocess.Popen, timeout: float = 30) -> int:
+        """Ctrl-C in the terminal of ``proc``: SIGINT to its whole process group (``ros2 run`` waits
+        for its node to stop; the node gets the signal too); the exit code."""
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+        return self.stop(proc, None, timeout)
 
     def close(self) -> None:
         """Kill whatever a test left running (its whole process group), and a daemon if one was

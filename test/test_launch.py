@@ -46,6 +46,8 @@ def node_calls(tree: ast.Module) -> dict[str, dict[str, ast.expr]]:
     for call in ast.walk(tree):
         if isinstance(call, ast.Call) and getattr(call.func, "id", None) in ("Node", "LifecycleNode"):
             kwargs = {k.arg: k.value for k in call.keywords}
+            if isinstance(kwargs.get("name"), ast.JoinedStr):  # workers:=N's stylizer_<k>
+                continue
             package = kwargs["package"]
             if isinstance(package, ast.Constant) and package.value == "robot_state_publisher":
                 continue
