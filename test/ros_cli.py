@@ -9,9 +9,10 @@ tests that need them skip and say so; where it is there, a venv without them is 
 Every command runs with ``AMENT_PREFIX_PATH`` (and ``PYTHONPATH``, as colcon's ``setup.bash`` sets
 them) on the scratch prefix, discovery on loopback (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) in a
 ROS domain of the test session's own, and ``--no-daemon`` wherever a verb takes it, so that no ros2
-daemon outlives a test. Without a daemon's cached graph a fresh command has to discover the nodes
-itself: the verbs that look a node up get ``--timeout`` (waits until it is found) or ``--spin-time``
-(waits that long), which a loaded 2-core machine needs beyond their 0.5-1 s defaults.
+daemon outlives a test (the lifecycle test starts a daemon of its own and stops it; ``close`` stops
+any left). Without a daemon's cached graph a fresh command has to discover the nodes itself: the
+verbs that look a node up get ``--timeout`` (waits until it is found) or ``--spin-time`` (waits that
+long), which a loaded 2-core machine needs beyond their 0.5-1 s defaults.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ BIN = Path(sys.executable).parent
 # A domain apart from conftest.py's (1 + pid % 100), which the in-process tests use.
 DOMAIN = 101 + os.getpid() % 100
 DISCOVERY = "5"  # --timeout: seconds a ros2 param verb waits for the node it is asked about
-SPIN = "1.0"  # --spin-time: seconds a verb without --timeout spins to discover the graph
+SPIN = "1.5"  # --spin-time: seconds a verb without --timeout spins to discover the graph
 ERROR_LINE = re.compile(r"\[ERROR\]|Traceback|Failed to publish|context is invalid")
 
 
@@ -68,14 +69,17 @@ def site_packages(prefix: Path) -> Path:
 
 
 def seed_kernel_cache(prefix: Path) -> int:
-    """Copy the source tree's numba cache (which conftest's ``stream_kernels`` has just made
-    current) next to the installed copies of the same files, how many files. The install keeps
+    """Copy the imported package's numba cache (which conftest's ``stream_kernels`` has just made
+    current) next to the prefix's copies of the same files; how many files. The install keeps
     the sources' modification times, which is what numba's cache index checks, so the nodes
     started from the prefix load the kernels instead of compiling them (30 s on 2 cores, once per
     install: that first start is measured in docs/ros.md, not in every test run)."""
+    import motion_style_ros  # the copy this session imported: the source tree, or an installed one
+
+    imported = Path(motion_style_ros.__file__).resolve().parent
     count = 0
-    for cached in (ROOT / PACKAGE).rglob("__pycache__/*.nb[ic]"):
-        target = site_packages(prefix) / cached.relative_to(ROOT)
+    for cached in imported.rglob("__pycache__/*.nb[ic]"):
+        target = site_packages(prefix) / PACKAGE / cached.relative_to(imported)
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(cached, target)
         count += 1
@@ -111,14 +115,18 @@ class RosCli:
     def ros2(self, *args: str, timeout: float = 60) -> subprocess.CompletedProcess:
         return self.run("ros2", *args, timeout=timeout)
 
-    def ros2_graph(self, *args: str, tries: int = 4, until=None) -> subprocess.CompletedProcess:
-        """A verb that looks the graph up in its ``--spin-time`` (``ros2 node list``, ``ros2
-        lifecycle``), with ``--no-daemon``: tried again while the node it wants was not discovered
-        yet ("Node not found", or ``until(output)`` false), as a user would on a loaded machine."""
-        for _ in range(tries):
-            out = self.ros2(*args, "--no-daemon", "--spin-time", SPIN)
+    def ros2_graph(self, *args: str, tries: int = 4, until=None, daemon: bool = False):
+        """A verb that looks the graph up (``ros2 node list``, ``ros2 lifecycle``, which also wants
+        the node's lifecycle services): tried again while what it wants was not discovered yet
+        ("Node not found", or ``until(output)`` false), as a user would on a loaded machine. With
+        ``--no-daemon`` it spins 1.5, 3, 6, 12 s to discover the graph; with ``daemon`` (a test that
+        started one with ``ros2 daemon start`` and stops it) it asks the daemon's graph."""
+        for attempt in range(tries):
+            options = [] if daemon else ["--no-daemon", "--spin-time", str(float(SPIN) * 2**attempt)]
+            out = self.ros2(*args, *options)
             if "Node not found" not in out.stdout + out.stderr and (until is None or until(out)):
                 break
+            time.sleep(0.5)
         return out
 
     def start(self, *cmd: str, log: str) -> subprocess.Popen:

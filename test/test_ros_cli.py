@@ -115,8 +115,12 @@ def test_ros2_launch_managed_then_ros2_lifecycle_set_through_every_transition(ro
     system = Launched(ros_cli, ["managed:=true", "use_synthetic:=true", "namespace:=demo"])
     assert yaml.safe_load(system.first.split("---")[0]) == NAMES
 
+    # ros2 lifecycle finds a node by its lifecycle services, which a fresh --no-daemon participant
+    # takes 3-12 s to discover here (on every call); a daemon of this test's own keeps the graph.
+    assert ros_cli.ros2("daemon", "start").returncode == 0
+
     def lifecycle(*args):
-        return ros_cli.ros2_graph("lifecycle", *args)
+        return ros_cli.ros2_graph("lifecycle", *args, daemon=True)
 
     assert lifecycle("get", "/demo/stylizer").stdout.split()[0] == "active"
     # The state read back where it matters: after deactivate (the launch file must not activate it
@@ -133,6 +137,7 @@ def test_ros2_launch_managed_then_ros2_lifecycle_set_through_every_transition(ro
     deadline = time.monotonic() + 30
     while "process has finished cleanly" not in system.proc.log.read_text() and time.monotonic() < deadline:
         time.sleep(0.2)
+    assert "The daemon has been stopped" in ros_cli.ros2("daemon", "stop").stdout
     code, log = system.stop()
     assert re.search(r"\[stylizer_managed-1\]: process has finished cleanly", log), log
     assert code == 0 and error_lines(log) == [], log
