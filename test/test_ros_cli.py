@@ -82,18 +82,22 @@ def test_ros2_param_set_get_dump_on_the_live_stylizer(demo, ros_cli):
     assert out.stderr.startswith("Setting parameter failed: "), out
 
 
-def hz(ros_cli, *topics, seconds=4.0):
-    """``ros2 topic hz TOPICS`` for ``seconds``, then Ctrl-C: the last average rate of each topic."""
+def hz(ros_cli, *topics, reports=3, timeout=40.0):
+    """``ros2 topic hz TOPICS`` until it has printed ``reports`` rates of each topic (once a second,
+    after it has discovered them), then Ctrl-C: the last average rate of each topic."""
     proc = ros_cli.start("ros2", "topic", "hz", *topics, log="hz.log")
-    time.sleep(seconds)
+
+    def rates():  # the multi-topic table: "<topic>  <rate>  <min> <max> <std> <window>"
+        text = proc.log.read_text()
+        return {t: re.findall(rf"^{re.escape(t)}\s+([\d.]+)\s", text, re.M) for t in topics}
+
+    deadline = time.monotonic() + timeout
+    while min(len(r) for r in rates().values()) < reports and time.monotonic() < deadline:
+        time.sleep(0.25)
     ros_cli.stop(proc)
-    text = proc.log.read_text()
-    rates = {}
-    for topic in topics:  # the multi-topic table: "<topic>  <rate>  <min> <max> <std> <window>"
-        found = re.findall(rf"^{re.escape(topic)}\s+([\d.]+)\s", text, re.M)
-        assert found, text
-        rates[topic] = float(found[-1])
-    return rates
+    found = rates()
+    assert all(found.values()), proc.log.read_text()
+    return {t: float(r[-1]) for t, r in found.items()}
 
 
 def test_ros2_topic_hz_of_the_output_is_the_inputs_rate(demo, ros_cli):
