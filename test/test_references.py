@@ -3,9 +3,11 @@ style encoder, a real Bandai clip)."""
 
 import threading
 from collections import deque
+from pathlib import Path
 
 import numpy as np
 import pytest
+from bad_files import unretargetable_clip
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.canonical import canonical_clip
@@ -57,13 +59,17 @@ def test_what_the_header_tells_is_refused_at_once_with_a_reason(session, clip, t
 
 def test_a_clip_that_cannot_be_used_queues_a_revert_and_says_why(session, clip, tmp_path):
     refs, errors = make(session)
-    broken = tmp_path / "broken.bvh"
+    garbled = tmp_path / "garbled.bvh"
     text = open(clip).read()
-    broken.write_text(text[: len(text) // 2] + "\nnot numbers at all\n")
-    refs.check(str(broken))  # its header is fine
+    garbled.write_text(text[: len(text) // 2] + "\nnot numbers at all\n")
+    with pytest.raises(MotionStyleError, match="non-number"):
+        refs.check(str(garbled))  # found at once, in the set callback
+    broken = Path(unretargetable_clip(tmp_path))
+    refs.check(str(broken))  # a well-formed BVH: only the worker finds it is no humanoid
     refs.load(str(broken), clip, {"reference": str(broken)}).join(60)
     assert list(refs.pending) == [{REVERT: clip}]
     assert len(errors) == 1 and "parameter reference:" in errors[0] and "keeping" in errors[0]
+    assert "not a humanoid skeleton" in refs.failure  # for /diagnostics, until a clip is taken
     # without a clip before it, the log says what '' means: the node's wording for its backend
     errors = []
     refs = References(session, deque(), errors.append, "the styles' own inputs")
