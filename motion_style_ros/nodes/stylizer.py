@@ -30,7 +30,7 @@ from std_srvs.srv import Trigger
 
 from motion_style_ros.io.joint_state import JointStateLayout
 from motion_style_ros.nodes import Parameters, PlayerNode, run
-from motion_style_ros.nodes.stylizer_outputs import Performer
+from motion_style_ros.nodes.stylizer_outputs import PerformerTopics
 from motion_style_ros.runtime import stylizer_settings as settings_
 from motion_style_ros.runtime.onnx_model import neutral_style
 from motion_style_ros.runtime.performer import PerformerStream, seconds
@@ -43,7 +43,7 @@ LEVELS = {0: DiagnosticStatus.OK, 1: DiagnosticStatus.WARN, 2: DiagnosticStatus.
 
 
 class StylizerBase(Parameters):
-    """The stylizer, mixed into a plain or a managed rclpy node: parameters, one :class:`Performer`
+    """The stylizer, mixed into a plain or a managed rclpy node: parameters, one :class:`PerformerTopics`
     per prefix, ``~/reset``, diagnostics.
 
     Parameters follow the ROS 2 rules: a change is checked in the on-set callback and applied
@@ -55,7 +55,7 @@ class StylizerBase(Parameters):
 
     def _setup(self) -> None:
         """What every stylizer node does first: the parameter callbacks."""
-        self.performers: list[Performer] = []
+        self.performers: list[PerformerTopics] = []
         self.live: LiveSettings | None = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._post_set_parameters)
@@ -86,7 +86,7 @@ class StylizerBase(Parameters):
         self.performers = []
         for prefix, s in zip(prefixes, sessions):
             robot = RobotTarget(values["robot_urdf"], values["robot_map"] or None) if values["robot_urdf"] else None
-            p = Performer(self, prefix, qos, trajectory_qos, values["publish_markers"], robot is not None)
+            p = PerformerTopics(self, prefix, qos, trajectory_qos, values["publish_markers"], robot is not None)
             p.stream = PerformerStream(p.input, s, self.layout, bounds, chunker(), p, self.get_logger(),
                                        robot, robot and chunker())
             self.performers.append(p)
@@ -117,7 +117,7 @@ class StylizerBase(Parameters):
 
     # --- streaming ------------------------------------------------------------------------------
 
-    def on_state(self, p: Performer, msg: JointState, info: MessageInfo) -> None:
+    def on_state(self, p: PerformerTopics, msg: JointState, info: MessageInfo) -> None:
         if self.live.pending:
             self._apply_pending()
         p.stream.frame(msg.name, msg.position, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,

@@ -28,7 +28,7 @@ def stamp(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
-class Performer:
+class PerformerTopics:
     """One performer's publishers and subscription: the :class:`~motion_style_ros.runtime.performer.Outputs`
     of its :class:`~motion_style_ros.runtime.performer.PerformerStream`."""
 
