@@ -4,6 +4,7 @@ import os
 from glob import glob
 
 from setuptools import find_packages, setup
+from setuptools.command.install import install
 
 package_name = 'motion_style_ros'
 here = os.path.dirname(os.path.abspath(__file__))
@@ -20,6 +21,29 @@ def share_files(top):
             target = os.path.join('share', package_name, os.path.dirname(path))
             entries.setdefault(target, []).append(path)
     return sorted(entries.items())
+
+
+class InstallAndWarm(install):
+    """`setup.py install`, what colcon's ament_python build runs, then the stream kernels compiled into
+    the install's own numba cache, so that the first node started after `colcon build` does not wait
+    for a compiler. A packaging build (--root: a wheel, a distribution's package) and
+    MOTION_STYLE_NO_WARMUP=1 skip it; if it fails, the install says so and nodes compile on their
+    first start."""
+
+    def run(self):
+        super().run()
+        if self.root or os.environ.get('MOTION_STYLE_NO_WARMUP'):
+            return
+        import subprocess
+        import sys
+
+        code = ('import sys; sys.path.insert(0, sys.argv[1]); '
+                'from motion_style_ros.runtime.warmup import warm_kernels; '
+                'print(f"motion_style_ros: stream kernels compiled into the install in {warm_kernels():.1f} s")')
+        done = subprocess.run([sys.executable, '-c', code, self.install_lib], cwd=self.install_lib, check=False)
+        if done.returncode:
+            print('motion_style_ros: the stream kernels were not compiled at install; nodes compile them '
+                  'on their first start (or run: motion-style warmup)')
 
 
 # setuptools wants paths relative to the project folder.
@@ -75,6 +99,7 @@ setup(
     },
     # Package data (csv/json) and models are opened by path, so never install as a zipped egg.
     zip_safe=False,
+    cmdclass={'install': InstallAndWarm},
     entry_points={
         'console_scripts': [
             'motion-style = motion_style_ros.cli.main:main',

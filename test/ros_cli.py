@@ -49,19 +49,21 @@ def require_tools() -> None:
     pytest.fail(f"ros2/launch_test missing from {BIN}: run `make venv` (it runs {SHARED_ROS})")
 
 
-def install(prefix: Path, work: Path) -> float:
+def install(prefix: Path, work: Path, warm: bool = False) -> subprocess.CompletedProcess:
     """Install the package into ``prefix`` as colcon's ament_python build does (``setup.py ...
     install --prefix P --single-version-externally-managed``; setup.cfg puts the executables in
-    ``lib/motion_style_ros`` for ``ros2 run`` and launch); the seconds it took."""
-    start = time.monotonic()
+    ``lib/motion_style_ros`` for ``ros2 run`` and launch). ``warm``: the install compiles the
+    kernels into the prefix as a user's does (about 25 s); else :func:`seed_kernel_cache` does
+    the tests' installs quicker."""
     work.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ, **({} if warm else {"MOTION_STYLE_NO_WARMUP": "1"}))
     out = subprocess.run(
         [sys.executable, "setup.py", "egg_info", "--egg-base", str(work), "build", "--build-base",
          str(work / "build"), "install", "--prefix", str(prefix), "--record", str(work / "record.txt"),
          "--single-version-externally-managed"],
-        cwd=ROOT, capture_output=True, text=True)
+        cwd=ROOT, capture_output=True, text=True, env=env)
     assert out.returncode == 0, out.stderr
-    return time.monotonic() - start
+    return out
 
 
 def site_packages(prefix: Path) -> Path:

@@ -227,3 +227,37 @@ def test_ros2_wheels_publish_and_subscribe(ros_env):
                           timeout=120, env=ros_env, stdin=subprocess.DEVNULL)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "JOINT_STATE_ROUND_TRIP_OK" in proc.stdout
+
+
+WARMED = textwrap.dedent("""
+    import importlib, pkgutil, sys
+    sys.path.insert(0, sys.argv[1])
+    import motion_style_ros
+    assert motion_style_ros.__file__.startswith(sys.argv[1]), motion_style_ros.__file__
+    from numba.core.registry import CPUDispatcher
+    from motion_style_ros.runtime.warmup import warm_kernels
+    warm_kernels()
+    hits = misses = 0
+    for package in ("motion_style_ros.core", "motion_style_ros.io"):
+        for info in pkgutil.walk_packages(importlib.import_module(package).__path__, package + "."):
+            for f in vars(importlib.import_module(info.name)).values():
+                if isinstance(f, CPUDispatcher):
+                    hits += sum(f.stats.cache_hits.values())
+                    misses += sum(f.stats.cache_misses.values())
+    print(hits, misses)
+""")
+
+
+def test_a_colcon_style_install_compiles_the_stream_kernels_into_the_prefix(tmp_path):
+    """``setup.py install`` (colcon's ament_python build) compiles the kernels into the install, so
+    a node started from it loads every kernel from the cache: the first launch after a build does
+    not wait for a compiler."""
+    from ros_cli import install, site_packages
+
+    out = install(tmp_path / "install", tmp_path / "build", warm=True)
+    assert "motion_style_ros: stream kernels compiled into the install in" in out.stdout, out.stdout[-2000:]
+    lib = site_packages(tmp_path / "install")
+    started = subprocess.run([sys.executable, "-c", WARMED, str(lib)], cwd=lib, capture_output=True, text=True)
+    assert started.returncode == 0, started.stderr
+    hits, misses = map(int, started.stdout.split())
+    assert hits > 0 and misses == 0, (hits, misses)
