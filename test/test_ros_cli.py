@@ -207,3 +207,32 @@ def test_ros2_launch_workers_share_the_performers_over_stylizer_processes(ros_cl
     code, log = system.stop()
     assert code == 0 and error_lines(log) == [], log
     assert len(re.findall(r"\[stylizer-\d\]: process has finished cleanly", log)) == 2, log
+
+
+def test_ros2_param_set_of_a_reference_that_cannot_serve_fails_and_the_old_value_stays(ros_cli, tmp_path):
+    """A stgcn stylizer (``ros2 run``): ``ros2 param set`` of ``reference`` to a truncated BVH, to a
+    BVH holding NaN, to /dev/zero and to a FIFO prints "Setting parameter failed" with the reason,
+    the node reads none of them (a FIFO with no writer would block it), and ``ros2 param get`` still
+    shows the clip in use ('' here)."""
+    from bad_files import unusable_clips
+
+    reasons = dict(unusable_clips(tmp_path, 30.0))
+    proc = ros_cli.start("ros2", "run", "motion_style_ros", "stylizer", "--ros-args", "-p", "backend:=stgcn",
+                         "-r", "__ns:=/refs", log="refs_stylizer.log")
+
+    def param(*args):
+        return ros_cli.ros2("param", *args, "--no-daemon", "--timeout", DISCOVERY)
+
+    try:
+        ros_cli.ros2_graph("node", "list", until=lambda out: "/refs/stylizer" in out.stdout.split())
+        for path, reason in reasons.items():
+            if not any(kind in path for kind in ("truncated", "nan", "fifo")) and path != "/dev/zero":
+                continue
+            out = param("set", "/refs/stylizer", "reference", path)
+            assert out.stderr.startswith("Setting parameter failed: ") and reason in out.stderr, (path, out)
+        out = param("get", "/refs/stylizer", "reference")
+        assert out.stdout.strip() == "String value is:", out
+        assert proc.poll() is None
+    finally:
+        code = ros_cli.ctrl_c(proc)  # as in a terminal: ros2 run waits for its node, which gets it too
+    assert code == 0 and error_lines(proc.log.read_text()) == [], proc.log.read_text()
