@@ -41,6 +41,10 @@ def add_parser(targets) -> None:
                             "while streaming, and report the longest gap between two outputs of a "
                             "performer against the longest gap between two inputs (the clip is read "
                             "off the streams' thread)")
+    nodes.add_argument("--workers", type=int, default=1, metavar="N",
+                       help="also stream each several-performer row's performers through N stylizer "
+                            "processes, shared out round robin as the launch file's workers:=N does, in "
+                            "a row of its own beside the one-process row (default: 1, none)")
     nodes.add_argument("--model", default=None,
                        help="ONNX model with its card beside it (default: the backend's shipped one)")
     nodes.set_defaults(func=run)
@@ -64,8 +68,10 @@ def run(args) -> int:
     except ValueError:
         raise MotionStyleError(f"--rates takes numbers separated by commas, got {args.rates!r}") from None
     counts = performer_counts(args.performers)
-    if min(rates) <= 0 or args.seconds <= 0 or min(counts) < 1:
-        raise MotionStyleError("--rates, --seconds and --performers must be positive")
+    if min(rates) <= 0 or args.seconds <= 0 or min(counts) < 1 or args.workers < 1:
+        raise MotionStyleError("--rates, --seconds, --performers and --workers must be positive")
+    if args.workers > 1 and args.reference:
+        raise MotionStyleError("--workers and --reference go one at a time (the reference is set on one node)")
     spec = backend(args.backend)
     if args.reference and not spec.reference_clips:
         raise MotionStyleError(f"--reference needs --backend {' or '.join(with_feature('reference_clips'))} "
@@ -81,12 +87,14 @@ def run(args) -> int:
         print(f"{args.backend} with lookahead {args.lookahead}: each output shows the motion of "
               f"{1000 * args.lookahead / card['fps']:.0f} ms earlier (not in the latencies below, "
               "which run from the input's stamp to the output's arrival)")
-    rows = [(node, rate, 1) for rate in rates for node in ("relay", "stylizer")]
+    rows = [(node, rate, 1, 1) for rate in rates for node in ("relay", "stylizer")]
     for n in (n for n in counts if n > 1):  # the relay for as many streams: rclpy's share of the stylizer's row
-        rows += [("relay", max(rates), n), ("stylizer", max(rates), n)]
+        rows += [("relay", max(rates), n, 1), ("stylizer", max(rates), n, 1)]
+        if args.workers > 1:
+            rows.append(("stylizer", max(rates), n, min(args.workers, n)))
     if args.reference:  # the reference changes at the highest rate, with the most performers
-        rows = [("relay", max(rates), 1), ("stylizer", max(rates), max(counts)),
-                ("stylizer+reference", max(rates), max(counts))]
+        rows = [("relay", max(rates), 1, 1), ("stylizer", max(rates), max(counts), 1),
+                ("stylizer+reference", max(rates), max(counts), 1)]
     delays = {rate: 1000 * _output_delay(path, args, rate) for rate in rates}  # ms, the stylizer's
     logs = Path(tempfile.mkdtemp(prefix="motion_style_bench_"))
     print(f"machine: {os.cpu_count()} cores, load average {load_average()} (before); node logs in {logs}; the nodes "
@@ -94,22 +102,23 @@ def run(args) -> int:
     print(f"each row: a node process (reliable QoS) <- synthetic walk frames from this process, "
           f"{NODE_WARMUP:g} s warm-up, {args.seconds:g} s measured; the relay republishes each "
           "frame as it came (what DDS and an rclpy node cost here), the stylizer stylizes it")
-    columns = ("node", "rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)",
+    columns = ("node", "processes", "rate (Hz)", "performers", "frames", "p50 (ms)", "p99 (ms)", "max (ms)",
                "dropped", "node p99", "CPU (%)", "bench CPU", "delay (ms)")
     print(" ".join(f"{c:>10}" for c in columns))
     held = []  # performer counts the stylizer held at the highest rate
     with LiveGraph("motion_style_bench", logs) as graph:
-        for node, rate, performers in rows:
+        for node, rate, performers, workers in rows:
             latency_ms, sent, node_p99, cpu, own, gaps = _stream_nodes(
                 graph, node.split("+")[0], rate, performers, args.seconds,
                 {"model": str(path), **settings} if node.startswith("stylizer") else {},
-                reference=args.reference if node.endswith("+reference") else None)
+                reference=args.reference if node.endswith("+reference") else None, workers=workers)
             p50, p99, worst = np.percentile(latency_ms, [50, 99, 100]) if len(latency_ms) else [np.nan] * 3
             delay = delays[rate] if node.startswith("stylizer") else 0.0
-            print(f"{node.split('+')[0]:>10} {rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} "
+            print(f"{node.split('+')[0]:>10} {workers:>10} {rate:>10g} {performers:>10} {sent:>10} {p50:>10.2f} {p99:>10.2f} "
                   f"{worst:>10.2f} {sent - len(latency_ms):>10} {node_p99:>10.2f} {cpu:>10.0f} "
                   f"{own:>10.0f} {delay:>10.1f}")
-            if node == "stylizer" and rate == max(rates) and sent == len(latency_ms) and p99 <= HELD_P99_MS:
+            if (node == "stylizer" and workers == 1 and rate == max(rates) and sent == len(latency_ms)
+                    and p99 <= HELD_P99_MS):
                 held.append(performers)
             if args.reference:
                 print(f"{'':>10} longest gap between two outputs of a performer {gaps['output_ms']:.1f} ms "
@@ -123,7 +132,7 @@ def run(args) -> int:
               + f" of {', '.join(map(str, sorted({1, *counts})))} tried")
     print(f"load average {load_average()} (after); node p99: the stylizer's own p99 (ms, worst performer) "
           "from a message's arrival in its DDS reader to the stylized frame's publication, from its "
-          "/diagnostics; CPU: the node process, % of one core; bench CPU: this process's "
+          "/diagnostics; CPU: the node processes together, % of one core; bench CPU: this process's "
           "(publishing and receiving every frame), which shares the cores; delay: how much earlier "
           "than its stamp the motion an output shows is (the session's latency), on top of p50/p99")
     return 0
@@ -144,13 +153,14 @@ NODE_DRAIN = 1.0  # s after the last frame for its output to arrive
 
 
 def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float, settings: dict,
-                  reference: str | None = None):
+                  reference: str | None = None, workers: int = 1):
     """One row: a fresh node ``name`` (stylizer or relay, with ``settings``) for ``performers``
     performers at ``rate`` Hz; returns the latency (ms) of every measured frame that came back, how
     many were sent, the node's own p99 (ms, its last diagnostics, worst performer; NaN without),
     and the CPU use of the node and of this process (% of one core) over the measured interval, and
     the longest gaps (ms) between two outputs of a performer and two inputs sent; with
-    ``reference``, the stylizer's reference parameter goes to that clip and back every 2 s."""
+    ``reference``, the stylizer's reference parameter goes to that clip and back every 2 s; with
+    ``workers`` > 1, the performers are shared out round robin over that many node processes."""
     import os
     import time
 
@@ -165,10 +175,11 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
 
     node = graph.node
     prefixes = [""] if performers == 1 else [f"performer{k}" for k in range(performers)]
-    settings = {"performers": prefixes, **settings}
     if name == "stylizer":
-        settings["input_fps"] = float(rate)
-    proc = graph.start(name, qos_reliability="reliable", qos_depth=100, **settings)
+        settings = {**settings, "input_fps": float(rate)}
+    names = [name] if workers == 1 else [f"{name}_{k}" for k in range(workers)]
+    procs = [graph.start(name, name=n, qos_reliability="reliable", qos_depth=100,
+                         performers=prefixes[k::workers], **settings) for k, n in enumerate(names)]
     reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     topics = [f"{p}/" if p else "" for p in prefixes]
     publishers = [node.create_publisher(JointState, f"{t}joint_states", reliable) for t in topics]
@@ -216,7 +227,7 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
             changes.append(client.set_parameters([Parameter("reference", value=reference if len(changes) % 2 == 0
                                                             else "")]))
         if now >= measure_from and not cpu_from:
-            cpu_from.append((cpu_seconds(proc.pid), cpu_seconds(os.getpid()), now))
+            cpu_from.append((sum(cpu_seconds(p.pid) for p in procs), cpu_seconds(os.getpid()), now))
         for publisher, stamps in zip(publishers, sent):
             msg = JointState(name=layout.names, position=frames[count % len(frames)])
             msg.header.stamp = clock.now().to_msg()
@@ -229,7 +240,7 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
     graph.spin_until(lambda: time.monotonic() >= end, "the stream", seconds + NODE_WARMUP + 60)
     stylizer_cpu, own_cpu, wall = cpu_from[0]
     wall = time.monotonic() - wall
-    cpu = 100 * (cpu_seconds(proc.pid) - stylizer_cpu) / wall
+    cpu = 100 * (sum(cpu_seconds(p.pid) for p in procs) - stylizer_cpu) / wall
     own = 100 * (cpu_seconds(os.getpid()) - own_cpu) / wall
     node_p99.clear()  # the diagnostics of the measured stream, not of the warm-up
     graph.spin_for(NODE_DRAIN + 1.0)  # the last frames' outputs, and the next diagnostics
@@ -239,7 +250,8 @@ def _stream_nodes(graph, name: str, rate: float, performers: int, seconds: float
         node.destroy_publisher(publisher)
     for subscription in subscriptions:
         node.destroy_subscription(subscription)
-    graph.stop(name)
+    for n in names:
+        graph.stop(n)
     latency = [got[s] - s for stamps, got in zip(sent, arrivals) for s in stamps if s in got]
     output_gap = max((np.diff(sorted(got[s] for s in stamps if s in got)).max(initial=0)
                       for stamps, got in zip(sent, arrivals)), default=0)
