@@ -16,18 +16,21 @@ def test_bench_nodes_measures_every_row(tmp_path, ros_env):
     model = recurrent_model(tmp_path / "style_erd.onnx", STYLES)
     result = subprocess.run(
         [sys.executable, "-m", "motion_style_ros.cli.main", "bench", "nodes", "--model", str(model),
-         "--rates", "60", "--performers", "2,3", "--seconds", "1"],
+         "--rates", "60", "--performers", "2,3", "--seconds", "1", "--workers", "2"],
         capture_output=True, text=True, timeout=400, env=ros_env,
     )
     assert result.returncode == 0, result.stdout + result.stderr
     lines = result.stdout.splitlines()
     assert "random-weight model" in result.stdout and "load average" in result.stdout
     assert "the nodes spin in rclpy's events executor (MOTION_STYLE_EXECUTOR)" in result.stdout
-    header = next(i for i, line in enumerate(lines) if line.split()[:3] == ["node", "rate", "(Hz)"])
-    rows = [line.split() for line in lines[header + 1:header + 7]]
-    assert [r[:3] for r in rows] == [["relay", "60", "1"], ["stylizer", "60", "1"], ["relay", "60", "2"],
-                                     ["stylizer", "60", "2"], ["relay", "60", "3"], ["stylizer", "60", "3"]]
-    for node, rate, performers, frames, p50, p99, worst, dropped, node_p99, cpu, own, delay in rows:
+    header = next(i for i, line in enumerate(lines) if line.split()[:4] == ["node", "processes", "rate", "(Hz)"])
+    rows = [line.split() for line in lines[header + 1:header + 9]]
+    # each several-performer stylizer row again with the performers shared over two processes
+    assert [r[:4] for r in rows] == [["relay", "1", "60", "1"], ["stylizer", "1", "60", "1"],
+                                     ["relay", "1", "60", "2"], ["stylizer", "1", "60", "2"],
+                                     ["stylizer", "2", "60", "2"], ["relay", "1", "60", "3"],
+                                     ["stylizer", "1", "60", "3"], ["stylizer", "2", "60", "3"]]
+    for node, processes, rate, performers, frames, p50, p99, worst, dropped, node_p99, cpu, own, delay in rows:
         assert int(frames) >= 10 * int(performers)  # about 60 per performer
         assert 0 < float(p50) <= float(p99) <= float(worst)
         # the stylizer reports its own latency (NaN fails); the relay has no diagnostics
@@ -35,8 +38,8 @@ def test_bench_nodes_measures_every_row(tmp_path, ros_env):
         assert 0 <= int(dropped) < int(frames) and float(cpu) > 0 and float(own) > 0
         # the session's latency at 60 Hz input: one 30 Hz model frame less one input frame
         assert float(delay) == (16.7 if node == "stylizer" else 0.0)
-    # the largest count held is the largest stylizer row with nothing dropped and p99 within 10 ms
-    held = [int(r[2]) for r in rows if r[0] == "stylizer" and r[7] == "0" and float(r[5]) <= 10]
+    # the largest count held is the largest one-process stylizer row with nothing dropped and p99 within 10 ms
+    held = [int(r[3]) for r in rows if r[:2] == ["stylizer", "1"] and r[8] == "0" and float(r[6]) <= 10]
     summary = next(line for line in lines if line.startswith("the stylizer held"))
     assert summary.endswith(f"{max(held)} performers of 1, 2, 3 tried" if held else "none of the counts of 1, 2, 3 tried")
 

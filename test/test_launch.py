@@ -138,8 +138,14 @@ def test_launch_file_runs_with_the_real_launch_service(tmp_path, ros_cli, monkey
                                  qos_profile_sensor_data)
         client = AsyncParameterClient(node, "/demo/stylizer")
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and not (len(states) > 30 and markers
-                                                   and client.services_are_ready()):
+        wanted = {"/demo/stylizer", "/demo/synthetic_performer", "/demo/vmc_bridge"}
+
+        def discovered() -> set[str]:
+            return {f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces()}
+
+        # every node discovered too: on a busy machine the bridge's participant can show up later
+        while time.monotonic() < deadline and not (len(states) > 30 and markers and client.services_are_ready()
+                                                   and wanted <= discovered()):
             executor.spin_once(timeout_sec=0.05)
         names = ["model", "target_style", "alpha", "publish_markers", "blend_seconds"]
         future = client.get_parameters(names)
@@ -148,7 +154,7 @@ def test_launch_file_runs_with_the_real_launch_service(tmp_path, ros_cli, monkey
             seen["parameters"] = dict(zip(names, (v.string_value or v.double_value or v.bool_value
                                                   for v in future.result().values)))
         seen["frames"], seen["markers"] = len(states), len(markers)
-        seen["nodes"] = {f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces()}
+        seen["nodes"] = discovered()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
         service.shutdown()
