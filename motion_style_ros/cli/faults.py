@@ -93,7 +93,7 @@ def run(args) -> int:
               "started again; times from its start (ms)")
         for cycle in range(1, args.cycles + 1):
             graph.spin_for(2.0)
-            _, started = restart("synthetic_performer", fps=int(args.rate))
+            _, started = restart("synthetic_performer", **pipeline.performer_params(args))
             first_in = first_after(inputs, started, "the restarted performer's first frame")
             unseen.append((started, first_in[0]))
             first_out = first_after(outputs, first_in[0], "a stylized frame of the restarted performer")

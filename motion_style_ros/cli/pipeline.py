@@ -16,9 +16,20 @@ def add_arguments(parser, out: str) -> None:
     parser.add_argument("--out", default=out, help=f"folder for the bag and the logs (default: {out})")
 
 
+# A recording keeps every frame, as ros2 bag record does with reliable publishers: a machine busy
+# with a node's start delays the recording rather than thinning it.
+RELIABLE = {"qos_reliability": "reliable"}
+
+
 def stylizer_params(args) -> dict:
     """The stylizer's parameters from the arguments (a restart passes the same ones)."""
-    return {"backend": args.backend, "input_fps": float(args.rate), **({"model": args.model} if args.model else {})}
+    return {"backend": args.backend, "input_fps": float(args.rate), **RELIABLE,
+            **({"model": args.model} if args.model else {})}
+
+
+def performer_params(args) -> dict:
+    """The synthetic performer's parameters (a restart passes the same ones)."""
+    return {"fps": int(args.rate), **RELIABLE}
 
 
 def prepare(args) -> tuple[Path, Path]:
@@ -39,6 +50,6 @@ def prepare(args) -> tuple[Path, Path]:
 def start(graph, args, bag: Path):
     """Start the stylizer, the recorder and the performer in ``graph``; the stylizer's process."""
     stylizer = graph.start("stylizer", **stylizer_params(args))
-    graph.start("recorder", bag=str(bag), topics=["joint_states", "stylized/joint_states"])
-    graph.start("synthetic_performer", fps=int(args.rate))
+    graph.start("recorder", bag=str(bag), topics=["joint_states", "stylized/joint_states"], **RELIABLE)
+    graph.start("synthetic_performer", **performer_params(args))
     return stylizer

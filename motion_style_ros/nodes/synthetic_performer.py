@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import sys
 
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 
 from motion_style_ros.core.synthetic import KINDS, synthetic_motion
@@ -30,7 +29,7 @@ class SyntheticPerformer(PlayerNode):
         self.layout = JointStateLayout.from_yaml(layout) if layout else JointStateLayout.canonical()
         self.frame = 0
         self.chunk = self._chunk()
-        self.publisher = self.create_publisher(JointState, topic, qos_profile_sensor_data)
+        self.publisher = self.create_publisher(JointState, topic, self.stream_qos())
         self.create_timer(1.0 / self.fps, self._tick)
         self.get_logger().info(f"performing a synthetic {self.kind} at {self.fps} fps on "
                                f"{self.publisher.topic_name}")
