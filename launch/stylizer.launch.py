@@ -34,53 +34,45 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 from lifecycle_msgs.msg import Transition
 
-from motion_style_ros.runtime.backends import BACKENDS, with_feature
+from motion_style_ros.runtime.stylizer_settings import PARAMETERS
 
 PACKAGE = 'motion_style_ros'
 
-
-def _backends(feature):
-    """The backends with ``feature``, for a help text: 'stgcn' or 'stgcn, most'."""
-    return ', '.join(with_feature(feature))
-
-
-# Launch argument -> (stylizer parameter, how to read the argument's text, description).
+# Launch argument -> the stylizer parameter it overrides; the descriptions and how an argument's
+# text is read come from the parameter table, so that they follow it.
 STYLIZER_ARGUMENTS = {
-    'backend': ('backend', str, 'the model family: ' + '; '.join(
-        f'{name} ({b.summary.split(":")[0].split(",")[0]})' for name, b in BACKENDS.items())),
-    'model': ('model', str, 'ONNX model: a file name in models/ or a path'),
-    'target_style': ('target_style', str, 'style to perform, one of the model card\'s styles'),
-    'alpha': ('alpha', float, 'style intensity, 0 (the input) .. 1'),
-    'part_alpha': ('part_alpha', yaml.safe_load,
-                   'alpha per body part, torso, arms, legs, e.g. "[1.0, 1.0, 0.0]" (legs as performed)'),
-    'latent_seed': ('latent_seed', int,
-                    f'{_backends("latent_seeds")}: latent seed (variation within a style)'),
-    'seed_spread': ('seed_spread', float,
-                    f'{_backends("latent_seeds")}: how much seeds differ, 0 .. 4 (1: as trained)'),
-    'reference': ('reference', str,
-                  f'{_backends("reference_clips")}: a BVH clip whose style to move in'),
-    'performers': ('performers', yaml.safe_load,
-                   'topic prefixes, one per performer, e.g. "[alice, bob]"'),
-    'markers': ('publish_markers', yaml.safe_load,
-                'true: also publish a MarkerArray skeleton for RViz'),
-    'qos_reliability': ('qos_reliability', str, 'best_effort or reliable'),
-    'pipelined': ('pipelined', yaml.safe_load,
-                  'true: each frame is published before its model frames run (steadier, one '
-                  'input frame later)'),
+    'backend': 'backend', 'model': 'model', 'target_style': 'target_style', 'alpha': 'alpha',
+    'part_alpha': 'part_alpha', 'latent_seed': 'latent_seed', 'seed_spread': 'seed_spread',
+    'reference': 'reference', 'performers': 'performers', 'markers': 'publish_markers',
+    'qos_reliability': 'qos_reliability', 'pipelined': 'pipelined',
 }
+_TABLE = {p.name: p for p in PARAMETERS}
+_DESCRIPTIONS = {
+    **{name: p.description for name, p in _TABLE.items()},
+    'target_style': "style to restyle into, one of the model card's styles; the card's neutral style by default",
+    'qos_reliability': 'QoS reliability of the streams: best_effort or reliable',
+}
+
+
+def _reader(parameter):
+    """How a launch argument's text becomes the parameter's value: by the type of its default."""
+    default = _TABLE[parameter].default if parameter in _TABLE else ''
+    if isinstance(default, (bool, list)):
+        return yaml.safe_load
+    return type(default)
 
 
 def _stylizer(context, *args, **kwargs):
     """The stylizer node, with an override for every stylizer argument that was given."""
     overrides = {}
-    for argument, (parameter, parse, _) in STYLIZER_ARGUMENTS.items():
+    for argument, parameter in STYLIZER_ARGUMENTS.items():
         text = LaunchConfiguration(argument).perform(context)
         if text:
             try:
-                overrides[parameter] = parse(text)
+                overrides[parameter] = _reader(parameter)(text)
             except (ValueError, yaml.YAMLError):
                 raise RuntimeError(f'launch argument {argument}:={text!r} is not a valid '
-                                   f'{parameter} ({STYLIZER_ARGUMENTS[argument][2]})') from None
+                                   f'{parameter} ({_DESCRIPTIONS[parameter]})') from None
     common = dict(namespace=LaunchConfiguration('namespace'), output='screen', emulate_tty=True,
                   parameters=[LaunchConfiguration('params_file'), overrides])
     workers = LaunchConfiguration('workers').perform(context)
@@ -149,8 +141,8 @@ def generate_launch_description():
         DeclareLaunchArgument('namespace', default_value='',
                               description='namespace of every node started here'),
         *(DeclareLaunchArgument(name, default_value='',
-                                description=f'{text}; empty: from params_file')
-          for name, (_, _, text) in STYLIZER_ARGUMENTS.items()),
+                                description=f'{_DESCRIPTIONS[parameter]}; empty: from params_file')
+          for name, parameter in STYLIZER_ARGUMENTS.items()),
         DeclareLaunchArgument('workers', default_value='1',
                               description='stylizer processes to share the performers out over '
                                           '(round robin): stylizer_0, stylizer_1, ... when above 1'),

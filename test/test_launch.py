@@ -78,7 +78,7 @@ def test_launch_sets_only_declared_parameters():
     tree = ast.parse(LAUNCH.read_text())
     arguments = next(n.value for n in tree.body if isinstance(n, ast.Assign)
                      and getattr(n.targets[0], "id", "") == "STYLIZER_ARGUMENTS")
-    set_by_launch = {ast.literal_eval(v.elts[0]) for v in arguments.values}
+    set_by_launch = {ast.literal_eval(v) for v in arguments.values}
     assert set_by_launch <= declared("stylizer")
     performer = node_calls(tree)["synthetic_performer"]["parameters"].elts[0]
     assert {ast.literal_eval(k) for k in performer.keys} <= declared("synthetic_performer")
