@@ -48,7 +48,7 @@ def test_cmu_subject_clips_with_their_speed_and_mirrored_copies(datasets):
 
 @pytest.mark.parametrize("spec", ["cmu:99", "/nonexistent/folder"])
 def test_a_spec_naming_nothing_is_one_line(datasets, spec):
-    with pytest.raises(MotionStyleError, match="--unlabelled") as err:
+    with pytest.raises(MotionStyleError, match=spec) as err:
         load_unlabelled((spec,), 30.0, progress=False)
     assert "\n" not in str(err.value)
 

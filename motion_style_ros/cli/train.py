@@ -36,6 +36,26 @@ def add_parser(subparsers):
                         help="folder for the ONNX files and cards (default: the shipped models/)")
     _run_flags(judges)
     judges.set_defaults(func=run_judges)
+    pairs = targets.add_parser(
+        "pairs", help="pseudo-pairs from other capture setups, for 'train recurrent --distil'",
+        description="Stylize clips from other capture setups into every style with every candidate "
+                    "backend; of the outputs judge panel 1 recognises as the target (and whose action its "
+                    "content judge still reads as the input's), keep the most confident as a regression "
+                    "target. Panel 2 never looks. 'eval --unseen' leaves these clips out of a model "
+                    "trained on them.")
+    pairs.add_argument("--clips", required=True, metavar="SPEC,SPEC",
+                       help="cmu:SUBJECT, cmu:SUBJECT_TRIAL, a BVH file or a folder of them, any rig")
+    pairs.add_argument("--candidates", default="recurrent,stgcn,most,saae:saae_model1.onnx,saae",
+                       metavar="BACKEND[:MODEL],...",
+                       help="the stylizers whose outputs may become targets (default: every shipped model)")
+    pairs.add_argument("--styles", default="", metavar="NAME,NAME",
+                       help="target styles (default: those of the shipped recurrent model)")
+    pairs.add_argument("--speeds", default="", metavar="S,S",
+                       help="also every clip played at these speeds, e.g. 0.8,1.25 (default: none)")
+    pairs.add_argument("--mirror", action="store_true", help="also every clip mirrored left-right")
+    pairs.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
+    pairs.add_argument("--out", required=True, help="the pairs file to write (.npz)")
+    pairs.set_defaults(func=run_pairs)
     from motion_style_ros.runtime.backends import BACKENDS
 
     for name in BACKENDS:
@@ -53,7 +73,7 @@ def add_parser(subparsers):
 
 
 _DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
-                  "unlabelled": ""}
+                  "unlabelled": "", "distil": ""}
 _RESUMABLE = ("Checkpoints every few minutes to ~/.cache/motion_style_ros/checkpoints/{}_<seed>/ (with "
               "losses.jsonl); --resume continues a stopped run, and the time and iteration budgets count "
               "over all resumed runs, so the same command finishes the job.")
@@ -215,6 +235,10 @@ def _data_flags(parser) -> None:
                              "model holds on other capture setups: cmu:SUBJECT (e.g. cmu:07), a BVH file "
                              "or a folder of them, any rig; 'eval --unseen' then leaves them out "
                              "(default: none)")
+    parser.add_argument("--distil", default="", metavar="PAIRS",
+                        help="also hold the model to the targets of a pseudo-pairs file ('motion-style train "
+                             "pairs'): other capture setups' clips in the style panel 1 recognised; 'eval "
+                             "--unseen' then leaves those clips out (default: none)")
 
 
 def _data_fields(args) -> tuple[dict, str]:
@@ -229,13 +253,14 @@ def _data_fields(args) -> tuple[dict, str]:
                   "balance": args.balance, "mirror": args.mirror,
                   "exclude": tuple(n for n in args.exclude_styles.split(",") if n),
                   "data": args.data or "", "neutral": args.neutral,
-                  "unlabelled": tuple(n for n in args.unlabelled.split(",") if n)}
+                  "unlabelled": tuple(n for n in args.unlabelled.split(",") if n), "distil": args.distil}
     except ValueError:
         raise MotionStyleError("--datasets takes set numbers (1,2) and --speeds numbers (0.8,1.25)") from None
     if not fields["datasets"] or not set(fields["datasets"]) <= {1, 2} or any(v <= 0 for v in fields["speeds"]):
         raise MotionStyleError("--datasets takes 1 and/or 2; --speeds positive numbers")
     given = {"datasets": args.datasets, "speeds": args.speeds, "balance": f"{args.balance:g}",
-             "exclude_styles": args.exclude_styles, "neutral": args.neutral, "unlabelled": args.unlabelled}
+             "exclude_styles": args.exclude_styles, "neutral": args.neutral, "unlabelled": args.unlabelled,
+             "distil": args.distil}
     flags = "".join(f" --{k.replace('_', '-')} {v}" for k, v in given.items() if v != _DATA_DEFAULTS[k])
     user = "".join(f" --{k} {shlex.quote(v)}" for k, v in (("data", args.data), ("out", args.out),
                                                             ("licence", args.licence)) if v and args.data)
@@ -280,6 +305,37 @@ def run_judges(args) -> int:
     return 0
 
 
+def run_pairs(args) -> int:
+    from pathlib import Path
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.runtime.backends import backend
+    from motion_style_ros.runtime.onnx_model import model_path, read_card
+    from motion_style_ros.training import pseudo_pairs
+    from motion_style_ros.training.data import FPS
+
+    candidates = [pseudo_pairs.Candidate.parse(c) for c in args.candidates.split(",") if c]
+    for c in candidates:
+        backend(c.backend)  # an unknown name: one line naming the backends
+    styles = ([s for s in args.styles.split(",") if s]
+              or read_card(model_path(backend("recurrent").default_model))["styles"])
+    try:
+        speeds = tuple(float(v) for v in args.speeds.split(",") if v)
+    except ValueError:
+        speeds = (0.0,)
+    if any(not v > 0 for v in speeds):
+        raise MotionStyleError(f"--speeds takes positive numbers (0.8,1.25), got {args.speeds}")
+    pairs = pseudo_pairs.make(tuple(c for c in args.clips.split(",") if c), candidates, styles, FPS, args.threads,
+                              speeds=speeds, mirror=args.mirror)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    pseudo_pairs.save(pairs, out)
+    made = {m: pairs.made_by.count(m) for m in pairs.meta["candidates"]}
+    print(f"{pairs.meta['kept']} of {pairs.meta['tried']} clip-style pairs kept "
+          f"({', '.join(f'{m} {n}' for m, n in made.items())}) -> {out}")
+    return 0
+
+
 def _report_judge(card: dict | None, out) -> None:
     """A trained judge's figures (rank 0; None elsewhere under torchrun)."""
     if card is not None:
@@ -306,6 +362,8 @@ def _stylizer_run(args, module: str, unlabelled: str | None = None, check=None):
     fields, recipe = _data_fields(args)
     if unlabelled and fields["unlabelled"]:
         raise MotionStyleError(f"--unlabelled: {unlabelled}; 'train recurrent' does")
+    if module != "recurrent" and fields["distil"]:
+        raise MotionStyleError("--distil: only 'train recurrent' learns from pseudo-pairs so far")
     return trainer, out, fields, recipe
 
 

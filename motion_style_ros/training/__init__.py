@@ -4,6 +4,8 @@
   augmentation, windows and normalisation;
 - :mod:`.unlabelled`: clips without style labels (other capture setups) conditioned as a stream is,
   for the generator to restyle in training;
+- :mod:`.pseudo_pairs`: those clips stylized by the shipped backends, the best output judge panel 1
+  recognises kept as a regression target (distillation);
 - :mod:`.losses`: differentiable kinematics and the reconstruction losses of the stylizers;
 - :mod:`.loop`: the resumable training loop (checkpoints, budget, log) every stylizer trainer runs,
   on any device and data-parallel under ``torchrun``;

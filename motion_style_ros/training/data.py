@@ -47,6 +47,9 @@ class DataConfig:
     # clips without style labels (``cmu:SUBJECT``, BVH files or folders) restyled in training but
     # never reconstructed nor shown to a critic as real (:mod:`motion_style_ros.training.unlabelled`)
     unlabelled: tuple[str, ...] = ()
+    # a pseudo-pairs file (``motion-style train pairs``): clips of other capture setups with a
+    # stylized target for a style each (:mod:`motion_style_ros.training.pseudo_pairs`)
+    distil: str = ""
 
 
 @dataclass
@@ -64,6 +67,10 @@ class Data:
     splits: dict[str, Clips]  # "train", "val"
     unlabelled: Clips | None = None  # styles and contents -1 (DataConfig.unlabelled)
     unlabelled_names: tuple[str, ...] = ()  # the clips it holds, for the card and eval --unseen
+    # DataConfig.distil's pairs: features are each input's encode() features and its target's
+    # [root | rot6d] frames side by side (split at the input's width); contents -1
+    pairs: Clips | None = None
+    pairs_record: dict | None = None  # how they were made, for the card
 
 
 def load_data(datasets: tuple[int, ...] = (2,), progress: bool = True, root: Path | None = None,
@@ -179,7 +186,30 @@ def load_for(cfg: DataConfig, progress: bool = True) -> Data:
         features, names = load_unlabelled(cfg.unlabelled, FPS, cfg.speeds, cfg.mirror, progress)
         unknown = np.full(len(features), -1)
         data = replace(data, unlabelled=Clips(features, unknown, unknown), unlabelled_names=tuple(names))
+    if cfg.distil:
+        data = with_pairs(data, cfg.distil)
     return data
+
+
+def with_pairs(data: Data, path: str) -> Data:
+    """``data`` with the pseudo-pairs of the file at ``path``; their clips join the unlabelled ones
+    (``eval --unseen`` leaves them out)."""
+    from motion_style_ros.training import pseudo_pairs
+
+    pairs = pseudo_pairs.load(path)
+    unknown = sorted(set(pairs.styles) - set(data.styles))
+    if unknown:
+        raise MotionStyleError(f"{path}: pairs into {', '.join(unknown)}, which the model does not have "
+                               f"(its styles: {', '.join(data.styles)})")
+    if not pairs.styles:
+        raise MotionStyleError(f"{path}: no pairs were kept; nothing to distil")
+    styles = np.array([data.styles.index(s) for s in pairs.styles])
+    clips = Clips([np.concatenate([x, y], axis=1) for x, y in zip(pairs.inputs, pairs.targets)], styles,
+                  np.full(len(styles), -1))
+    made = {m: pairs.made_by.count(m) for m in pairs.meta["candidates"]}
+    record = {**{k: pairs.meta[k] for k in ("clips", "judges", "kept", "tried")}, "made_by": made}
+    names = tuple(dict.fromkeys((*data.unlabelled_names, *pairs.clips)))
+    return replace(data, pairs=clips, pairs_record=record, unlabelled_names=names)
 
 
 def data_tag(data: str) -> str:
@@ -199,6 +229,10 @@ def recipe(cfg: DataConfig, licence: str | None = None) -> dict:
     unlabelled = ({"unlabelled": f"clips without style labels, restyled into every style in training "
                                  f"(never reconstructed nor shown as real): {', '.join(cfg.unlabelled)}"}
                   if cfg.unlabelled else {})
+    if cfg.distil:
+        unlabelled["distilled"] = ("a supervised term towards pseudo-pairs: clips of other capture setups "
+                                   "stylized by the shipped backends, the best output judge panel 1 recognises "
+                                   "as the target kept (motion-style train pairs)")
     if cfg.data:
         return {"data": f"the user's labelled BVH folder {cfg.data}: 'train' takes (val takes for the val "
                         "figures; test takes never seen; split in its motion_style_split.csv)",

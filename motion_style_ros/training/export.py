@@ -72,7 +72,9 @@ def licence_fields(training: dict) -> dict:
     Bandai data's."""
     fields = (dict(LICENCE) if "licence" not in training
               else {"licence": training["licence"], "attribution": f"trained on {training['data']}"})
-    if any(str(spec).startswith("cmu:") for spec in training.get("config", {}).get("unlabelled", [])):
+    specs = [*training.get("config", {}).get("unlabelled", []),
+             *training.get("clips", {}).get("pairs", {}).get("clips", [])]
+    if any(str(spec).startswith("cmu:") for spec in specs):
         fields["attribution"] += f"; {CMU_ACKNOWLEDGEMENT}"
     return fields
 

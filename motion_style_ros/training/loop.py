@@ -313,4 +313,6 @@ def card_record(trainer: ResumableTrainer, data: Data, setup_seconds: float, com
     clips = {k: len(c.features) for k, c in data.splits.items()}
     if data.unlabelled_names:  # eval --unseen leaves these out
         clips["unlabelled"] = list(data.unlabelled_names)
+    if data.pairs_record is not None:
+        clips["pairs"] = data.pairs_record
     return {**recipe(trainer.cfg, licence), "clips": clips, **run_record(trainer, setup_seconds, command)}

@@ -80,6 +80,10 @@ class Config(ContentConfig):
     # windows of the unlabelled clips (DataConfig.unlabelled) per iteration, each restyled into a
     # random style: critic and content terms only (they have no style to reconstruct)
     unlabelled_batch: int = 8
+    # windows of the pseudo-pairs (DataConfig.distil) per iteration, each stylized into its pair's
+    # style and held to the pair's target by the reconstruction terms, weighted w_distil
+    distil_batch: int = 8
+    w_distil: float = 1.0
     # the adversarial and perceptual weights ramp up linearly over the first iterations, so the
     # generator reconstructs plausible motion before the critics push it around
     warmup: int = 2000
@@ -176,10 +180,12 @@ class Trainer(ResumableTrainer):
             u, _, _ = windows(self.data.unlabelled, cfg.window, cfg.unlabelled_batch, rng)
             u, u_target = self.shard(u, torch.from_numpy(rng.integers(0, n_styles, len(u))))
             source, target = torch.cat([x, u]), torch.cat([other, u_target])
-        output, neutral = self.stylize(torch.cat([x, source]), torch.cat([style, target]))
+        pair_inputs, pair_styles, pair_targets = self.pair_windows(rng)
+        output, neutral = self.stylize(torch.cat([x, source, pair_inputs]),
+                                       torch.cat([style, target, pair_styles]))
         out = self.losses.views(output)
         rec = {k: v[:batch] for k, v in out.items()}
-        fake = {k: v[batch:] for k, v in out.items()}
+        fake = {k: v[batch:batch + len(source)] for k, v in out.items()}
         source_views = self.losses.views(frames(source))
         real = {k: v[:batch] for k, v in source_views.items()}
         with torch.no_grad():
@@ -205,12 +211,17 @@ class Trainer(ResumableTrainer):
         # generator: reconstruction + adversarial (D(fake) -> 0, eq. 4) + perceptual
         self.dis.requires_grad_(False)
         terms = self.losses.reconstruction(rec, real)
+        distil = torch.zeros(())
+        if len(pair_targets):
+            taught = {k: v[batch + len(source):] for k, v in out.items()}
+            distil = sum(self.losses.reconstruction(taught, self.losses.views(pair_targets)).values())
         adv = self.dis(self.crops(fake["pv"]), *labels_fake).pow(2).mean()
         _, maps = self.content(fake["content"])
         per = sum(F.mse_loss(a, b) for a, b in zip(maps, target_maps))
         foot = self.losses.foot(fake, source)
         ramp = min(1.0, (iteration + 1) / cfg.warmup) if cfg.warmup else 1.0
-        total = sum(terms.values()) + ramp * (cfg.w_adv * adv + cfg.w_per * per + cfg.w_foot * foot)
+        total = (sum(terms.values()) + cfg.w_distil * distil
+                 + ramp * (cfg.w_adv * adv + cfg.w_per * per + cfg.w_foot * foot))
         # the style adversary reads the input's style in the neutral stack's output of the
         # labelled windows at its own rate; the generator gets its gradient reversed and weighted,
         # so it learns to leave no style there
@@ -226,8 +237,19 @@ class Trainer(ResumableTrainer):
             self.opt_a.step()
         update_average(self.ema, self.model, cfg.ema)
         return {**{k: v.item() for k, v in terms.items()}, "rec": sum(terms.values()).item(),
-                "adv": adv.item(), "per": per.item(), "foot": foot.item(), "critic": critic.item(), "gp": gp.item(),
+                "adv": adv.item(), "per": per.item(), **({"distil": distil.item()} if len(pair_targets) else {}), "foot": foot.item(), "critic": critic.item(), "gp": gp.item(),
                 **({"style_told": told.item()} if self.adversary is not None else {})}
+
+    def pair_windows(self, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Windows of the pseudo-pairs: inputs ``(B, window, F)``, their styles and their targets'
+        ``[root | rot6d]`` frames (empty where the run distils nothing)."""
+        pairs, width = self.data.pairs, self.data.splits["train"].features[0].shape[1]
+        if pairs is None:
+            empty = torch.zeros((0, self.cfg.window, width), device=self.device)
+            return empty, torch.zeros(0, dtype=torch.long, device=self.device), empty[..., :FRAME]
+        w, styles, _ = windows(pairs, self.cfg.window, self.cfg.distil_batch, rng)
+        w, styles = self.shard(w, styles)
+        return w[..., :width], styles, w[..., width:]
 
     @torch.no_grad()
     def validate(self, model: StyleERD | None = None) -> dict[str, float]:

@@ -1,0 +1,184 @@
+"""Pseudo-pairs for distillation: motion from other capture setups, each clip into each style by
+every shipped backend, the best output kept as a plain regression target.
+
+Labelled Bandai takes never show a model a CMU performer in the style asked for, and adversarial
+terms on unlabelled clips only push towards it. Here, for each clip and style, the outputs of the
+candidate stylizers that judge panel 1 recognises as the target (among the model's styles) and whose
+action its content judge still reads as the input's are ranked by the target's probability, and the
+best one becomes the target of a supervised term (``training.recurrent``'s ``w_distil``). Only
+panel 1 looks here: panel 2 never chooses anything, so it can report on the result.
+
+Both sides of a pair are conditioned as a stream session conditions the input (the input's arm
+rolls, size and height, :func:`~motion_style_ros.training.unlabelled.conditioning`), at the
+training rate, frame for frame.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from motion_style_ros.core.features import encode, feature_layout
+from motion_style_ros.core.motion import Motion
+from motion_style_ros.core.mirror import mirror as mirror_motion
+from motion_style_ros.core.resample import at_speed, resample
+from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.evaluation.judges import Judge
+from motion_style_ros.io import files
+from motion_style_ros.io.resources import rotation_stats
+from motion_style_ros.training.content import FRAME
+from motion_style_ros.training.unlabelled import conditioning, sources
+
+PANEL = 1  # the judges that may guide training; panel 2 only reports
+# The content judge knows Bandai's actions only: on a CMU punch or swordplay it spreads its
+# probability thin (0.2 at most), and whatever it names changes with any restyling. Its label must
+# stay the same only where it reads the input's action with at least this probability (a CMU walk: 0.43).
+CONFIDENT_CONTENT = 0.3
+VERSION = 1
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A stylizer whose outputs may become targets: a backend and its model (None: the shipped one)."""
+
+    backend: str
+    model: str | None = None
+
+    @classmethod
+    def parse(cls, spec: str) -> Candidate:
+        """``"most"`` or ``"saae:models/saae_model1.onnx"``."""
+        backend, _, model = spec.partition(":")
+        return cls(backend, model or None)
+
+    def __str__(self) -> str:
+        return f"{self.backend}:{self.model}" if self.model else self.backend
+
+
+@dataclass
+class Pairs:
+    """Kept pairs, one per (clip, style) at most: inputs ``(T_k, F)`` features, targets ``(T_k, FRAME)``
+    ``[root | rot6d]`` frames, the target style, the clip, the candidate that made it and the
+    target's panel-1 probability; ``tried``: every (clip, style), kept or not, for the record."""
+
+    inputs: list[np.ndarray]
+    targets: list[np.ndarray]
+    styles: list[str]
+    clips: list[str]
+    made_by: list[str]
+    probability: list[float]
+    tried: list[dict]
+    meta: dict
+
+
+Stylize = Callable[[Motion, str], Motion]
+
+
+def _judged(style_judge: Judge, content_judge: Judge, offered: list[int], motion: Motion, style: str,
+            content: str | None) -> float | None:
+    """The target's panel-1 probability of ``motion`` where the style judge picks ``style`` among the
+    ``offered`` columns and the content judge still reads ``content`` (None: any); else None."""
+    if not (np.isfinite(motion.rotations).all() and np.isfinite(motion.positions).all()):
+        return None
+    p = style_judge.judge([motion]).probabilities[0]
+    column = style_judge.labels.index(style)
+    if offered[int(np.argmax(p[offered]))] != column or (
+            content is not None and content_judge.judge([motion]).labels[0] != content):
+        return None
+    return float(p[column])
+
+
+def variants(motion: Motion, speeds: tuple[float, ...], mirror: bool) -> list[tuple[str, Motion]]:
+    """``motion`` as it is, at each of ``speeds`` and, with ``mirror``, each of those mirrored
+    left-right, each with what it is (``""``, ``" x0.8"``, ``" x0.8 mirrored"``)."""
+    out = [("", motion), *((f" x{v:g}", at_speed(motion, v)) for v in speeds)]
+    return out + ([(f"{name} mirrored", mirror_motion(m)) for name, m in out] if mirror else [])
+
+
+def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str], fps: float,
+         threads: int = 1, progress: bool = True, stylizers: dict[str, Stylize] | None = None,
+         speeds: tuple[float, ...] = (), mirror: bool = False) -> Pairs:
+    """Every clip ``specs`` name (:func:`~motion_style_ros.training.unlabelled.sources`; also at
+    ``speeds`` and mirrored, :func:`variants`) into every one of ``styles`` by every candidate, at
+    ``fps``; the best recognised output of each kept. ``stylizers``: the candidates' stylizers by
+    name (default: their offline sessions)."""
+    from motion_style_ros.runtime import offline
+
+    stats = rotation_stats()
+    style_judge, content_judge = Judge("style", threads, panel=PANEL), Judge("content", threads, panel=PANEL)
+    unknown = [s for s in styles if s not in style_judge.labels]
+    if unknown:
+        raise MotionStyleError(f"the panel-{PANEL} style judge does not know {', '.join(unknown)}")
+    offered = [style_judge.labels.index(s) for s in styles]
+    stylizers = stylizers or {str(c): offline.stylizer(c.backend, c.model, threads=threads) for c in candidates}
+    clips = [(name, variant, moved) for spec in specs for name, motion in sources(spec, stats)
+             for variant, moved in variants(motion, speeds, mirror)]
+    pairs = Pairs([], [], [], [], [], [], [], {})
+    for name, variant, motion in tqdm(clips, desc="pseudo-pairs", disable=not progress):
+        low = resample(motion, fps)
+        condition = conditioning(low, fps, stats)
+        features = encode(condition(low))
+        read = content_judge.judge([low])
+        content = read.labels[0] if read.probabilities[0].max() >= CONFIDENT_CONTENT else None
+        for style in styles:
+            scored = []
+            for made_by, stylize in stylizers.items():
+                out = stylize(low, style)
+                if out.n_frames != low.n_frames:
+                    raise MotionStyleError(f"{made_by} gave {out.n_frames} frames for {name}{variant}'s "
+                                           f"{low.n_frames}: a target must match its input frame for frame")
+                p = _judged(style_judge, content_judge, offered, out, style, content)
+                if p is not None:
+                    scored.append((p, made_by, out))
+            best = max(scored, key=lambda s: s[0], default=None)
+            pairs.tried.append({"clip": name + variant, "style": style, "recognised_by": sorted(m for _, m, _ in scored),
+                                "kept": best[1] if best else None})
+            if best is None:
+                continue
+            pairs.inputs.append(features.astype(np.float32))
+            pairs.targets.append(encode(condition(best[2]))[:, :FRAME].astype(np.float32))
+            pairs.styles.append(style)
+            pairs.clips.append(name)
+            pairs.made_by.append(best[1])
+            pairs.probability.append(best[0])
+    pairs.meta = {"version": VERSION, "clips": list(specs), "speeds": list(speeds), "mirror": mirror,
+                  "candidates": list(stylizers), "styles": list(styles),
+                  "fps": fps, "judges": [style_judge.model.path.name, content_judge.model.path.name],
+                  "kept": len(pairs.styles), "tried": len(pairs.tried)}
+    return pairs
+
+
+def save(pairs: Pairs, path: Path) -> None:
+    """One compressed ``.npz`` (arrays only, no pickles)."""
+    lengths = np.array([len(x) for x in pairs.inputs], dtype=np.int64)
+    np.savez_compressed(
+        path, inputs=np.concatenate(pairs.inputs or [np.zeros((0, feature_layout().size), np.float32)]),
+        targets=np.concatenate(pairs.targets or [np.zeros((0, FRAME), np.float32)]),
+        lengths=lengths, styles=np.array(pairs.styles, dtype=str), clips=np.array(pairs.clips, dtype=str),
+        made_by=np.array(pairs.made_by, dtype=str), probability=np.array(pairs.probability),
+        meta=np.array(json.dumps(pairs.meta)), tried=np.array(json.dumps(pairs.tried)))
+
+
+def load(path: str | Path) -> Pairs:
+    """A pairs file :func:`save` wrote; one line on anything else."""
+    import io
+
+    try:
+        with np.load(io.BytesIO(files.read_bytes(path, "arrays")), allow_pickle=False) as z:
+            lengths = z["lengths"]
+            cuts = np.cumsum(lengths)[:-1]
+            meta = json.loads(str(z["meta"]))
+            if meta.get("version") != VERSION:
+                raise MotionStyleError(f"{path}: pairs of version {meta.get('version')}; this package reads "
+                                       f"{VERSION} (make them again with 'motion-style train pairs')")
+            inputs, targets = np.split(z["inputs"], cuts), np.split(z["targets"], cuts)
+            return Pairs(inputs if len(lengths) else [], targets if len(lengths) else [],
+                         [str(s) for s in z["styles"]], [str(c) for c in z["clips"]],
+                         [str(m) for m in z["made_by"]], [float(p) for p in z["probability"]],
+                         json.loads(str(z["tried"])), meta)
+    except (OSError, ValueError, KeyError, EOFError) as e:
+        raise MotionStyleError(f"{path}: not a pseudo-pairs file ({e})") from None

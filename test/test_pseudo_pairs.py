@@ -1,0 +1,141 @@
+"""Pseudo-pairs for distillation: both sides conditioned as the stream session conditions the input,
+frame for frame; a target is kept only where judge panel 1 recognises its style (the most confident
+candidate wins); the file round-trips and a bad one is one line; a Style-ERD step is held to the
+targets, and the card names the clips (so 'eval --unseen' leaves them out) and CMU."""
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch", reason="the trainers need torch: pip install '.[train]'")
+
+from motion_style_ros.cli.main import main  # noqa: E402
+from motion_style_ros.core.motion import Motion  # noqa: E402
+from motion_style_ros.core.resample import resample  # noqa: E402
+from motion_style_ros.errors import MotionStyleError  # noqa: E402
+from motion_style_ros.io.datasets import index_bandai, load_bandai  # noqa: E402
+from motion_style_ros.io.resources import rotation_stats  # noqa: E402
+from motion_style_ros.training import data as training_data  # noqa: E402
+from motion_style_ros.training import pseudo_pairs  # noqa: E402
+from motion_style_ros.training.content import FRAME  # noqa: E402
+from motion_style_ros.training.export import CMU_ACKNOWLEDGEMENT, licence_fields  # noqa: E402
+from motion_style_ros.training.loop import card_record  # noqa: E402
+from motion_style_ros.training.recurrent import trainer  # noqa: E402
+from motion_style_ros.training.unlabelled import conditioned, conditioning, sources  # noqa: E402
+
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+
+
+@pytest.fixture(scope="module")
+def walks(datasets):
+    """A real Bandai dataset-2 walk of every style, at 30 fps."""
+    infos = [i for i in index_bandai(datasets, datasets=(2,)) if i.split == "test" and i.content == "walk"]
+    chosen = [next(i for i in infos if i.style == s) for s in STYLES]
+    return {info.style: resample(m, 30.0) for info, m in load_bandai(chosen, progress=False)}
+
+
+def _frames_of(take: Motion, source: Motion) -> Motion:
+    """``take`` cut or looped to ``source``'s frame count (a stand-in stylizer's output)."""
+    index = np.arange(source.n_frames) % take.n_frames
+    return Motion(take.skeleton, take.rotations[index], take.positions[index], source.fps)
+
+
+@pytest.fixture(scope="module")
+def pairs(walks):
+    stylizers = {"real": lambda source, style: _frames_of(walks[style], source),
+                 "identity": lambda source, style: source}
+    return pseudo_pairs.make(("cmu:07_01",), [], STYLES, 30.0, progress=False, stylizers=stylizers,
+                             speeds=(1.25,))
+
+
+def test_conditioning_applies_the_inputs_rolls_size_and_height_to_its_output(datasets):
+    stats = rotation_stats()
+    (_, clip), = sources("cmu:07_02", stats)
+    low = resample(clip, 30.0)
+    condition = conditioning(low, 30.0, stats)
+    same = condition(low)
+    assert np.array_equal(same.positions, conditioned(low, 30.0, stats).positions)
+    # a translated copy keeps the offset: the output is placed by the input's origin, not its own
+    pelvis = low.skeleton.pelvis
+    positions = low.positions.copy()
+    positions[:, pelvis, 0] += 0.5
+    shifted = condition(Motion(low.skeleton, low.rotations, positions, low.fps))
+    assert shifted.n_frames == same.n_frames
+    offset = shifted.positions[:, pelvis] - same.positions[:, pelvis]
+    # one offset, divided by the performer's size as the root's path is, at the same height
+    assert np.allclose(offset, offset[0], atol=1e-9)
+    assert 0.3 < offset[0, 0] < 0.8 and offset[0, 1] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_target_is_kept_only_where_panel_1_recognises_its_style(pairs):
+    assert len(pairs.tried) == 2 * len(STYLES)  # the clip and its 1.25x copy
+    kept = [row for row in pairs.tried if row["kept"]]
+    assert len(kept) == len(pairs.styles) >= len(pairs.tried) * 0.7  # real walks are recognised
+    for row in pairs.tried:
+        assert (row["kept"] is None) == (not row["recognised_by"])
+        assert row["kept"] is None or row["kept"] in row["recognised_by"]
+    # the identity restyles nothing: it can only be kept for the style panel 1 reads in the input
+    assert len({s for s, m in zip(pairs.styles, pairs.made_by) if m == "identity"}) <= 1
+    assert all(0.0 < p <= 1.0 for p in pairs.probability)
+    for x, y in zip(pairs.inputs, pairs.targets):
+        assert x.shape[0] == y.shape[0] and y.shape[1] == FRAME and np.isfinite(y).all()
+    assert set(pairs.clips) == {"cmu 07_01"} and pairs.meta["judges"] == ["judge_style.onnx", "judge_content.onnx"]
+
+
+def test_a_stylizer_that_changes_the_length_is_refused(walks):
+    with pytest.raises(MotionStyleError, match="frame for frame"):
+        pseudo_pairs.make(("cmu:07_01",), [], STYLES[:1], 30.0, progress=False,
+                          stylizers={"short": lambda source, style: source[: source.n_frames // 2]})
+
+
+def test_the_file_round_trips_and_a_bad_one_is_one_line(pairs, tmp_path):
+    path = tmp_path / "pairs.npz"
+    pseudo_pairs.save(pairs, path)
+    back = pseudo_pairs.load(path)
+    assert back.styles == pairs.styles and back.made_by == pairs.made_by and back.meta == pairs.meta
+    assert all(np.array_equal(a, b) for a, b in zip(back.targets, pairs.targets))
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not an npz at all")
+    with pytest.raises(MotionStyleError, match="not a pseudo-pairs file") as err:
+        pseudo_pairs.load(bad)
+    assert "\n" not in str(err.value)
+
+
+def test_a_style_erd_step_is_held_to_the_targets_and_the_card_names_the_clips(datasets, pairs, tmp_path):
+    path = tmp_path / "pairs.npz"
+    pseudo_pairs.save(pairs, path)
+    labelled = training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
+    cfg = trainer.tiny_config(distil=str(path), crop_frames=8)
+    data = training_data.with_pairs(labelled, cfg.distil)
+    assert len(data.pairs.features) == len(pairs.styles)
+    runs = {}
+    for key, d, c in (("with", data, cfg), ("without", labelled, trainer.tiny_config(crop_frames=8))):
+        run = trainer.Trainer(c, d, tmp_path / key, progress=False)
+        run.run(iterations=2, log_every=1, val_every=1000)
+        runs[key] = run
+    terms = runs["with"].step(2)
+    assert terms["distil"] > 0 and "distil" not in runs["without"].step(2)
+    assert any(not torch.equal(a, b) for a, b in zip(runs["with"].model.parameters(),
+                                                      runs["without"].model.parameters()))
+    record = card_record(runs["with"], data, 0.0, "", None)
+    assert record["clips"]["unlabelled"] == ["cmu 07_01"]
+    assert record["clips"]["pairs"]["kept"] == len(pairs.styles) and "distilled" in record
+    assert CMU_ACKNOWLEDGEMENT in licence_fields({**record, "config": {}})["attribution"]
+
+
+def test_pairs_into_a_style_the_model_lacks_are_refused(datasets, pairs, tmp_path):
+    path = tmp_path / "pairs.npz"
+    pseudo_pairs.save(pairs, path)
+    left_out = next(s for s in pairs.styles if s != "normal")
+    labelled = training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1,
+                                       exclude=(left_out,))
+    with pytest.raises(MotionStyleError, match=f"pairs into {left_out}, which the model does not have"):
+        training_data.with_pairs(labelled, str(path))
+
+
+def test_only_the_recurrent_trainer_takes_pairs_and_bad_flags_are_one_line(capsys, tmp_path):
+    assert main(["train", "stgcn", "--distil", str(tmp_path / "p.npz"), "--out", str(tmp_path)]) == 2
+    assert "only 'train recurrent'" in capsys.readouterr().err
+    assert main(["train", "pairs", "--clips", "cmu:07", "--speeds", "-1", "--out", str(tmp_path / "p.npz")]) == 2
+    assert "--speeds takes positive numbers" in capsys.readouterr().err
+    assert main(["train", "pairs", "--clips", "cmu:07", "--candidates", "nope", "--out", str(tmp_path / "p.npz")]) == 2
+    assert "nope" in capsys.readouterr().err
