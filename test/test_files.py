@@ -53,7 +53,7 @@ def _readers():
     from motion_style_ros.io.joint_state import JointStateLayout
     from motion_style_ros.runtime import onnx_model, robot_body_map, style_bank
 
-    return {"bvh": bvh.read, "bvh header": bvh.duration, "model": onnx_model.model_path,
+    return {"bvh": bvh.read, "bvh header": bvh.header, "model": onnx_model.model_path,
             "style bank": style_bank._load, "layout": JointStateLayout.from_yaml,
             "body map": robot_body_map.load_map, "urdf": urdf.read}
 

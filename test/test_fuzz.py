@@ -167,12 +167,12 @@ DEEP_BVH = ("HIERARCHY\n" + "".join(f"{'ROOT' if j == 0 else 'JOINT'} j{j}\n{{\n
 @example(data=BVH.replace("Frames: 1", "Frames: nan").encode())  # ValueError from int()
 @example(data=BVH.replace("Frames: 1", "Frames: inf").encode())  # OverflowError
 @example(data=BVH.replace("OFFSET 0 1 0", "OFFSET nan 1 0", 1).encode())  # a NaN skeleton
-@example(data=BVH.replace("Time: 0.0083333", "Time: 0.0").encode())  # duration() took it
+@example(data=BVH.replace("Time: 0.0083333", "Time: 0.0").encode())  # header() took it
 @example(data=BVH.replace("Time: 0.0083333", "Time: 5e-324").encode())  # an infinite rate
 @example(data=BVH.replace(" 9\n", " 1_0\n").encode())  # read() took what check() refuses
 @example(data=BVH.replace("CHANNELS 3", "CHANNELS " + "9" * 5000).encode())  # ValueError in check()
 @example(data=DEEP_BVH.encode())  # RecursionError
-def test_bvh_read_duration_check(scratch, data):
+def test_bvh_read_header_check(scratch, data):
     path = scratch / "clip.bvh"
     path.write_bytes(data)
     clip = outcome(bvh.read, path)
@@ -182,7 +182,7 @@ def test_bvh_read_duration_check(scratch, data):
         assert math.isfinite(clip.fps) and clip.fps > 0
         motion = outcome(clip.to_motion, 0.01)
         assert motion is None or finite(motion.rotations, motion.positions)
-    span = outcome(bvh.duration, path)
+    span = outcome(bvh.header, path)
     if span is not None:
         frames, frame_time = span
         assert frames >= 1 and math.isfinite(frame_time) and frame_time > 0

@@ -299,71 +299,62 @@ def write(path: str | Path, clip: BvhClip, precision: int | None = None) -> None
     Path(path).write_text(out.getvalue(), encoding="utf-8")
 
 
-def duration(path: str | Path) -> tuple[int, float]:
-    """``(frames, frame time in s)`` from the header alone (a quick check before a full read),
-    or a one-line :class:`MotionStyleError`."""
-    data = files.read_bytes(path, "bvh")
-    _, sep, body = data.partition(b"MOTION")
-    m = re.match(rb"\s*Frames:\s*([0-9+-]+)\s+Frame\s+Time:\s*(\S+)", body) if sep else None
-    try:
-        frames, frame_time = int(m[1]), float(m[2])
-    except (TypeError, ValueError):  # no match; not a number (or an int of over 4300 digits)
-        raise MotionStyleError(f"{path}: not a BVH file (no 'Frames:' and 'Frame Time:' after MOTION)") from None
-    if frames < 1:
-        raise MotionStyleError(f"{path}: has {frames} frames; a clip needs at least one")
-    if not (np.isfinite(frame_time) and frame_time >= MIN_FRAME_TIME):
-        raise MotionStyleError(f"{path}: frame time must be at least {MIN_FRAME_TIME:g} s, found {frame_time:g}")
-    return frames, frame_time
-
-
-def check(path: Path, joints: tuple[str, ...] | None = None) -> str | None:
-    """The first problem :func:`read` would report, found without converting the numbers.
+def header(path: str | Path, joints: tuple[str, ...] | None = None) -> tuple[int, float]:
+    """``(frames, frame time in s)`` of a file :func:`read` would take, found in one read without
+    converting the numbers, or a one-line :class:`MotionStyleError` naming the first problem.
 
     For indexing thousands of files quickly, and for checking a file a user names before it is
-    read; ``joints`` are the expected joint names in order (None: any).
-
-    Checks the joint names, the frame count, non-numeric text (NaN, inf, garbage) and the number of
-    values, in about 0.2 ms per file; :func:`read` at load time re-checks everything.
+    read; ``joints`` are the expected joint names in order (None: any). Checks the joint names, the
+    frame count and time, non-numeric text (NaN, inf, garbage) and the number of values, in about
+    0.2 ms per file; :func:`read` at load time re-checks everything.
     """
-    try:
-        data = files.read_bytes(path, "bvh")
-    except MotionStyleError as e:
-        return str(e).removeprefix(f"{path}: ")
+    data = files.read_bytes(path, "bvh")
+
+    def refuse(problem: str) -> MotionStyleError:
+        return MotionStyleError(f"{path}: {problem}")
+
     head, sep, body = data.partition(b"MOTION")
     if not sep or not head.lstrip().startswith(b"HIERARCHY"):
-        return "not a BVH file (no HIERARCHY and MOTION sections), or truncated"
+        raise refuse("not a BVH file (no HIERARCHY and MOTION sections), or truncated")
     if head.count(b"{") != head.count(b"}"):
-        return "hierarchy braces do not match (malformed or truncated header)"
+        raise refuse("hierarchy braces do not match (malformed or truncated header)")
     names = tuple(n.decode(errors="replace") for n in re.findall(rb"\b(?:ROOT|JOINT)\s+(\S+)", head))
     if joints is not None and names != joints:
-        return f"joints {_first_difference(names, joints)}; not the expected {len(joints)}-joint skeleton"
+        raise refuse(f"joints {_first_difference(names, joints)}; not the expected {len(joints)}-joint skeleton")
     m = re.match(rb"\s*Frames:\s*([0-9+-]+)\s+Frame\s+Time:\s*(\S+)", body)
     try:
         frames, frame_time = int(m[1]), float(m[2])
-    except (TypeError, ValueError):  # no match, or not a number
-        return "no valid 'Frames:' and 'Frame Time:' after MOTION"
+    except (TypeError, ValueError):  # no match; not a number (or an int of over 4300 digits)
+        raise refuse("no valid 'Frames:' and 'Frame Time:' after MOTION") from None
     if frames < 1:
-        return f"has {frames} frames; a clip needs at least one"
+        raise refuse(f"has {frames} frames; a clip needs at least one")
     if not (np.isfinite(frame_time) and frame_time >= MIN_FRAME_TIME):
-        return f"frame time must be at least {MIN_FRAME_TIME:g} s, found {frame_time:g}"
+        raise refuse(f"frame time must be at least {MIN_FRAME_TIME:g} s, found {frame_time:g}")
     values = body[m.end() :].strip()
     if values.translate(None, _NUMBER_BYTES):
         bad = re.search(rb"\S*[^0-9.+\-eE\s]\S*", values)[0].decode(errors="replace")
-        return f"motion data holds a non-number {bad[:20]!r}"
+        raise refuse(f"motion data holds a non-number {bad[:20]!r}")
     counts = re.findall(rb"CHANNELS\s+(\d+)", head)
     if any(len(n) > 1 for n in counts):  # not 0, 3 or 6 (and an int of 4300 digits is a ValueError)
-        return "a joint's CHANNELS count is not 0, 3 or 6"
+        raise refuse("a joint's CHANNELS count is not 0, 3 or 6")
     n_channels = sum(int(n) for n in counts)
     # One frame per line is how every writer lays BVH out: count lines, fall back to counting values.
     lines = values.count(b"\n") + 1 if values else 0
     if lines == frames and len(values[values.rfind(b"\n") + 1 :].split()) == n_channels:
-        return None
+        return frames, frame_time
     found = len(values.split()) / max(n_channels, 1)
     if found != frames:
-        return (
-            f"header says {frames} frames of {n_channels} channels, but the file holds {found:.2f} "
-            f"frames ({'truncated' if found < frames else 'extra values'})"
-        )
+        raise refuse(f"header says {frames} frames of {n_channels} channels, but the file holds {found:.2f} "
+                     f"frames ({'truncated' if found < frames else 'extra values'})")
+    return frames, frame_time
+
+
+def check(path: Path, joints: tuple[str, ...] | None = None) -> str | None:
+    """The first problem :func:`read` would report (:func:`header`), without the path; None if none."""
+    try:
+        header(path, joints)
+    except MotionStyleError as e:
+        return str(e).removeprefix(f"{path}: ")
     return None
 
 
