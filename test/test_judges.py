@@ -187,6 +187,8 @@ def test_runtime_and_evaluation_do_not_import_torch():
         "import motion_style_ros.runtime.onnx_model, motion_style_ros.evaluation.judges\n"
         "import motion_style_ros.evaluation.metrics, motion_style_ros.evaluation.harness\n"
         "import motion_style_ros.cli.eval\n"
+        "from motion_style_ros.cli.main import build_parser\n"
+        "build_parser()  # every command's flags, the trainers' included\n"
         "print('torch' in sys.modules)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

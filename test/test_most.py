@@ -348,10 +348,10 @@ def test_a_residual_generator_starts_at_its_input_and_learns_a_change_that_expor
 def test_the_residual_flag_reaches_the_config_and_the_resuming_command():
     from argparse import Namespace
 
-    from motion_style_ros.cli.train import _model_flags
+    from motion_style_ros.training.command import model_flags
 
     args = Namespace(residual=True, dec_blocks=3, content_weight=None)
-    changes, given = _model_flags(args, {"residual": "residual", "dec_blocks": "dec_blocks",
+    changes, given = model_flags(args, {"residual": "residual", "dec_blocks": "dec_blocks",
                                          "content_weight": "w_content"})
     assert changes == {"residual": True, "dec_blocks": 3}
     assert given == " --residual --dec-blocks 3"

@@ -11,8 +11,10 @@
   on any device and data-parallel under ``torchrun``;
 - :mod:`.hardware`: the device (``--device``), the process group, mixed precision;
 - :mod:`.export`: ONNX export under the model contract's names, shared card fields, model writing;
+- :mod:`.command`: what every ``motion-style train <backend>`` subcommand shares (no torch);
 - one package per stylizer with only its own parts, a ``trainer`` (config, networks, step,
-  validation, ``train``) and an ``export`` (graphs, parity, card, a random stand-in for tests):
-  :mod:`.recurrent` (Style-ERD) and :mod:`.stgcn`;
+  validation, ``train``), an ``export`` (graphs, parity, card, a random stand-in for tests) and a
+  ``command`` (its ``train`` subcommand's flags and run, no torch; the package loads the others on
+  first use, :mod:`.lazy`): :mod:`.recurrent` (Style-ERD), :mod:`.stgcn`, :mod:`.most`, :mod:`.saae`;
 - :mod:`.judges`: the evaluation judges' training, export and cards.
 """
