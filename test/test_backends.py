@@ -100,3 +100,29 @@ def test_a_new_backend_is_one_registry_entry_and_its_session(echo, tmp_path, cap
     assert main(["stylize", str(clip), "-o", str(tmp_path / "out.bvh"), "--backend", "echo",
                  "--style", "echo"]) == 0
     assert "style echo" in capsys.readouterr().out and (tmp_path / "out.bvh").is_file()
+
+
+def test_a_new_backends_trainer_package_brings_its_train_subcommand(echo, monkeypatch, capsys):
+    """A trainer package with a ``command`` module (its flags and run) is all ``motion-style train``
+    needs: nothing in cli/ names it."""
+    import importlib.machinery
+    import sys
+    import types
+
+    from motion_style_ros.cli.main import main
+    from motion_style_ros.training.command import TrainCommand
+
+    ran = []
+    for name, package in (("motion_style_ros.training.echo", True), ("motion_style_ros.training.echo.command", False)):
+        module = types.ModuleType(name)
+        module.__spec__ = importlib.machinery.ModuleSpec(name, None, is_package=package)
+        monkeypatch.setitem(sys.modules, name, module)
+    command = sys.modules["motion_style_ros.training.echo.command"]
+    command.COMMAND = TrainCommand("the echo stylizer", "Echoes.", 7.0, "echo.onnx", flags=(
+        ("--loudness", dict(type=float, default=1.0, help="how loud")),))
+    command.run = lambda args: ran.append((args.minutes, args.loudness)) or 0
+    assert main(["train", "echo", "--loudness", "2"]) == 0
+    assert ran == [(7.0, 2.0)]
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    assert "the echo stylizer" in capsys.readouterr().out
