@@ -39,13 +39,19 @@ def test_imports_point_downward(path):
 TESTS = Path(__file__).resolve().parent
 
 
+# Modules of the torch-side layers that import no torch: what the command line's parser reads
+# (test_judges.py::test_runtime_and_evaluation_do_not_import_torch builds it without torch).
+TORCH_FREE = {"motion_style_ros.training.command"}
+
+
 @pytest.mark.parametrize("path", sorted(TESTS.glob("*.py")), ids=lambda p: p.name)
 def test_a_test_that_needs_torch_says_so(path):
     """A runtime-only install (no torch: make test-runtime) runs every test but those that need
     torch, which skip with a reason: a test module that imports torch, the models or the trainers
     asks for torch with pytest.importorskip."""
     wants = {name for name in imports(path)
-             if name.split(".")[0] == "torch" or name.startswith(("motion_style_ros.training", "motion_style_ros.models"))}
+             if name.split(".")[0] == "torch" or name.startswith(("motion_style_ros.training", "motion_style_ros.models"))
+             and name not in TORCH_FREE}
     if wants:
         assert 'importorskip("torch"' in path.read_text(), f"{path.name} imports {sorted(wants)}"
 

@@ -28,7 +28,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from motion_style_ros.core.motion import forward_kinematics
 from motion_style_ros.io import bags
 from motion_style_ros.io.joint_state import JointStateLayout, to_ros
-from motion_style_ros.nodes import EXECUTOR_VARIABLE, EXECUTORS, WithInfo, executor
+from motion_style_ros.nodes.process import EXECUTOR_VARIABLE, EXECUTORS, WithInfo, executor
 from motion_style_ros.nodes.bvh_player import load
 from motion_style_ros.nodes.stylizer import stamp_seconds
 from motion_style_ros.runtime.recurrent import RecurrentSession

@@ -59,7 +59,7 @@ def run(args) -> int:
 
     from motion_style_ros.cli.live import LiveGraph
     from motion_style_ros.errors import MotionStyleError
-    from motion_style_ros.nodes import EXECUTOR_VARIABLE, executor_choice
+    from motion_style_ros.nodes.process import EXECUTOR_VARIABLE, executor_choice
     from motion_style_ros.runtime.backends import backend, with_feature
     from motion_style_ros.runtime.onnx_model import read_card
 

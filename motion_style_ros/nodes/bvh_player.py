@@ -13,7 +13,9 @@ from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io import bvh
 from motion_style_ros.io.joint_state import JointStateLayout
-from motion_style_ros.nodes import PlayerNode, joint_state, run
+from motion_style_ros.nodes.messages import joint_state
+from motion_style_ros.nodes.parameters import PlayerNode
+from motion_style_ros.nodes.process import run
 
 NAME = "bvh_player"
 

@@ -19,7 +19,9 @@ from sensor_msgs.msg import JointState
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.joint_state import JointStateLayout
-from motion_style_ros.nodes import PlayerNode, joint_state, run
+from motion_style_ros.nodes.messages import joint_state
+from motion_style_ros.nodes.parameters import PlayerNode
+from motion_style_ros.nodes.process import run
 from motion_style_ros.runtime import learned_performer as learned
 from motion_style_ros.runtime.saae import DEFAULT_MODEL, SPREAD
 from motion_style_ros.runtime.warmup import warm_kernels

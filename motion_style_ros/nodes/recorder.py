@@ -13,7 +13,8 @@ from sensor_msgs.msg import JointState
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.bags import BagWriter
-from motion_style_ros.nodes import PlayerNode, run
+from motion_style_ros.nodes.parameters import PlayerNode
+from motion_style_ros.nodes.process import run
 
 NAME = "recorder"
 

@@ -12,7 +12,11 @@ import sys
 
 from sensor_msgs.msg import JointState
 
-from motion_style_ros.nodes import PlayerNode, prefixed, run
+from motion_style_ros.nodes.messages import prefixed
+
+from motion_style_ros.nodes.parameters import PlayerNode
+
+from motion_style_ros.nodes.process import run
 from motion_style_ros.runtime.stylizer_settings import check_prefixes
 
 NAME = "relay"

@@ -29,7 +29,8 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from motion_style_ros.io.joint_state import JointStateLayout
-from motion_style_ros.nodes import Parameters, PlayerNode, run
+from motion_style_ros.nodes.parameters import Parameters, PlayerNode
+from motion_style_ros.nodes.process import run
 from motion_style_ros.nodes.stylizer_outputs import PerformerTopics
 from motion_style_ros.runtime import stylizer_settings as settings_
 from motion_style_ros.runtime.onnx_model import neutral_style

@@ -14,7 +14,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from rclpy.task import Future
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.nodes import run
+from motion_style_ros.nodes.process import run
 from motion_style_ros.nodes.stylizer import NAME, StylizerBase
 
 

@@ -16,7 +16,8 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.nodes import WithInfo, doubles, joint_state, prefixed
+from motion_style_ros.nodes.messages import doubles, joint_state, prefixed
+from motion_style_ros.nodes.process import WithInfo
 from motion_style_ros.runtime.performer import PerformerStream
 from motion_style_ros.runtime.trajectory import Chunk
 

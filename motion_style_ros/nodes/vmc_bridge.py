@@ -35,7 +35,9 @@ from motion_style_ros.io.vmc import (
     VmcReceiver,
     VmcSender,
 )
-from motion_style_ros.nodes import PlayerNode, joint_state, run
+from motion_style_ros.nodes.messages import joint_state
+from motion_style_ros.nodes.parameters import PlayerNode
+from motion_style_ros.nodes.process import run
 from motion_style_ros.runtime.vmc_link import VmcLink
 
 BAD = ("malformed", "incomplete", "conversion_errors", "not_sent", "kernel_dropped", "stale", "superseded",

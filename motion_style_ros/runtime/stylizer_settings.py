@@ -48,7 +48,7 @@ _WINDOWS, _SEEDS, _REFERENCES = (", ".join(with_feature(feature))
                                   for feature in ("lookahead", "latent_seeds", "reference_clips"))
 _SEEDLESS = ", ".join(b for b in BACKENDS if not BACKENDS[b].latent_seeds)
 # Every parameter but target_style (its default is the model's neutral style) and the QoS ones
-# (nodes.Parameters.qos, as for every node of the package).
+# (nodes.parameters.Parameters.qos, as for every node of the package).
 PARAMETERS = (
     Parameter("performers", [""], "topic prefix of each performer (one session each): performer N "
               "subscribes N/joint_states and publishes N/stylized/...; '' = the node's namespace"),
