@@ -8,7 +8,7 @@ import pytest
 
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.backends import BACKENDS, Backend, backend, with_feature
-from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.defaults import StreamSettings
 from motion_style_ros.runtime.onnx_model import model_path, read_card
 from motion_style_ros.runtime.model_step import Stylized
 from motion_style_ros.runtime.stream import StreamSession
@@ -60,11 +60,9 @@ class EchoSession(StreamSession):
     """The whole runtime module of a new frame-by-frame backend: its session around its step."""
 
     def __init__(self, model, performers: int = 1, input_fps: float | None = None, threads: int = 1,
-                 phase_seconds: float = 0.0, **settings) -> None:
+                 settings: StreamSettings | None = None, **stream) -> None:
         card = read_card(model_path(str(model)))
-        taken = {k: settings.get(k, DEFAULTS[k]) for k in
-                 ("blend_seconds", "gap_seconds", "follow_seconds", "foot_lock", "ground", "pipelined", "conform")}
-        super().__init__(card, EchoStep(), performers, input_fps, **taken, phase_seconds=phase_seconds)
+        super().__init__(card, EchoStep(), performers, input_fps, StreamSettings.of(settings, stream))
 
 
 @pytest.fixture

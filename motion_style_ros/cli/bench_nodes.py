@@ -143,8 +143,7 @@ def _output_delay(path, args, rate: float) -> float:
     from motion_style_ros.runtime.backends import backend
 
     spec = backend(args.backend)
-    extra = {"lookahead": args.lookahead} if spec.lookahead else {}
-    return spec.session_class()(path, input_fps=rate, pipelined=args.pipelined, **extra).latency
+    return spec.open_session(path, input_fps=rate, pipelined=args.pipelined, lookahead=args.lookahead).latency
 
 
 HELD_P99_MS = 10.0  # a node holds a count of performers when none drops and p99 stays within this

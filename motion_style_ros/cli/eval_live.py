@@ -76,7 +76,7 @@ def run(args: argparse.Namespace, backend: str) -> int:
     from motion_style_ros.io.joint_state import JointStateLayout
     from motion_style_ros.runtime.backends import backend as spec
     from motion_style_ros.runtime.defaults import DEFAULTS
-    from motion_style_ros.runtime.offline import default_model, stylizer
+    from motion_style_ros.runtime.offline import stylizer
 
     styles = args.live_styles.split(",")
     out = Path(args.out)
@@ -127,11 +127,9 @@ def run(args: argparse.Namespace, backend: str) -> int:
                            **settings},
               "clips": rows, "summary": _summary(rows)}
     if not args.no_proportions:
-        Session = spec(backend).session_class()
         clips = [live.live_input(p) for p in paths]
         report["proportions"] = live.proportions(
-            lambda fps: Session(args.model or default_model(backend), input_fps=fps, threads=args.threads,
-                                **settings),
+            lambda fps: spec(backend).open_session(args.model, input_fps=fps, threads=args.threads, **settings),
             clips, Judge("style").labels, Judge("style", args.threads), progress=not args.quiet)
         for scale, row in report["proportions"].items():
             print(f"scale {scale}: " + ", ".join(f"{k} {v:.3g}" for k, v in row.items()))
@@ -146,9 +144,7 @@ def run(args: argparse.Namespace, backend: str) -> int:
 def _delay(backend: str, fps: float) -> int:
     """Input frames by which the node's output trails the offline output of the same clip."""
     from motion_style_ros.runtime.backends import backend as spec
-    from motion_style_ros.runtime.offline import default_model
-
-    session = spec(backend).session_class()(default_model(backend), input_fps=fps)
+    session = spec(backend).open_session(input_fps=fps)
     return int(round(session.latency * fps))
 
 

@@ -51,7 +51,7 @@ def run(args) -> int:
         raise MotionStyleError(f"{path.name}: a {kind} model; a style bank needs a "
                                f"{' or '.join(with_feature('style_bank'))} model (a style encoder)")
     bank = Path(args.bank) if args.bank else style_bank.path_beside(path)
-    session = BACKENDS[kind].session_class()(path, lookahead=0, bank=bank if bank.exists() else None)  # its encoder only
+    session = BACKENDS[kind].open_session(path, lookahead=0, bank=bank if bank.exists() else None)  # its encoder only
     known = session.styles[: len(session.card["styles"])]
     entries = dict(session.bank)
     if args.action == "list":

@@ -58,10 +58,9 @@ class ReferenceStylizer:
         self._by_style: dict[str, list[tuple[str, Motion]]] = {}
         for info, m in sorted(clips, key=lambda c: c[0].name):
             self._by_style.setdefault(info.style, []).append((info, m))
-        settings = dict(threads=threads, **made_by.settings({**PUBLISHED, **(session or {})}))
-        made = made_by.session_class()
-        self._sessions = {None: made(model or made_by.default_model, **settings)}  # per input rate
-        self._make = lambda fps: made(model or made_by.default_model, input_fps=fps, **settings)
+        settings = dict(threads=threads, **PUBLISHED, **(session or {}))
+        self._make = lambda fps: made_by.open_session(model, input_fps=fps, **settings)
+        self._sessions = {None: self._make(None)}  # per input rate
         self._alpha, self._seed, self.same_content = alpha, seed, same_content
         self.last_reference: tuple[str, Motion] | None = None
 

@@ -31,7 +31,7 @@ def window_times(backend: str, model: str | Path | None = None, performers: int 
     """Wall time (ms) of each of ``repeats`` runs of a windowed backend's step on one window of
     ``performers`` (its model calls on the history, at the first style)."""
     spec = backends.backend(backend)
-    session = spec.session_class()(model or spec.default_model, performers=performers, threads=threads)
+    session = spec.open_session(model, performers=performers, threads=threads)
     step = session.windows
     style = np.zeros((performers, len(session.styles)))
     style[:, 0] = 1.0
@@ -182,7 +182,7 @@ def bench_report(motion: Motion, backend: str = "stgcn", model: str | Path | Non
                  f"lookahead {lookahead} ({figures['latency_ms']:.0f} ms):")
     figures["step_ms"] = {}
     for h in hops:
-        session = spec.session_class()(path, hop=h, lookahead=lookahead, threads=threads, input_fps=motion.fps)
+        session = spec.open_session(path, hop=h, lookahead=lookahead, threads=threads, input_fps=motion.fps)
         ms = step_times(session, motion, session.styles[0])
         p50, p99, worst = np.percentile(ms, [50, 99, 100])
         lines.append(f"  hop {h}: p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {worst:.2f} ms, mean {ms.mean():.2f} ms")
@@ -209,8 +209,7 @@ def enrolment(style: str, out_dir: Path, model: str | Path | None = None, clips:
         raise MotionStyleError("--enrol needs a backend with a style bank: "
                                + " or ".join(backends.with_feature("style_bank")))
     model = model or made_by.default_model
-    settings = made_by.settings(PUBLISHED)
-    session = made_by.session_class()(model, **settings)
+    session = made_by.open_session(model, **PUBLISHED)
     if style in session.styles[: len(session.card["styles"])]:
         raise MotionStyleError(f"{style!r} is a style the model was trained on; enrol one it has not seen")
     takes = sorted((i for i in index_bandai(root) if i.style == style and i.split == "train"),
@@ -224,7 +223,7 @@ def enrolment(style: str, out_dir: Path, model: str | Path | None = None, clips:
     out_dir.mkdir(parents=True, exist_ok=True)
     bank = out_dir / f"enrolled_{style}.json"
     style_bank.write(bank, {style: entry}, session.card["name"], session.model_digest)
-    enrolled = stylizer(backend, str(model), bank=bank, **settings)  # a session per input rate
+    enrolled = stylizer(backend, str(model), bank=bank, **made_by.settings(PUBLISHED))  # a session per input rate
     test = held_out_clips(root, progress=progress)
     one_per_cell = {(i.content, i.style): m for i, m in sorted(test, key=lambda c: c[0].name)}
     sources = {"bandai2_test": list(one_per_cell.values()),

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
+from pathlib import Path
 
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.runtime.defaults import StreamSettings
 
 
 @dataclass(frozen=True)
@@ -25,13 +27,23 @@ class Backend:
 
     def settings(self, values: dict) -> dict:
         """The entries of ``values`` (session settings by keyword) that this backend's session
-        takes: ``hop`` and ``lookahead`` only with windows, ``seed_spread`` only with seeds."""
-        takes = {"hop": self.lookahead, "lookahead": self.lookahead, "seed_spread": self.latent_seeds}
+        takes: ``window``, ``hop`` and ``lookahead`` only with windows, ``seed_spread`` only with
+        seeds, ``bank`` only with a style bank."""
+        takes = {"window": self.lookahead, "hop": self.lookahead, "lookahead": self.lookahead,
+                 "seed_spread": self.latent_seeds, "bank": self.style_bank}
         return {k: v for k, v in values.items() if takes.get(k, True)}
 
     def session_class(self) -> type:
         module, name = self.session.split(":")
         return getattr(importlib.import_module(module), name)
+
+    def open_session(self, model: str | Path | None = None, settings: StreamSettings | None = None,
+                     **options):
+        """This backend's session on ``model`` (default: its shipped one) with the stream
+        ``settings`` (default: :data:`~motion_style_ros.runtime.defaults.DEFAULTS`') and the
+        session's own ``options`` (``performers``, ``input_fps``, ``threads``, ``window``, ...;
+        windows and seeds only where the backend has them: :meth:`settings`)."""
+        return self.session_class()(model or self.default_model, settings=settings, **self.settings(options))
 
 
 BACKENDS: dict[str, Backend] = {

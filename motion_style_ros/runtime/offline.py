@@ -52,8 +52,7 @@ def with_reference(backend: str, model: str | None = None, alpha: float = DEFAUL
     recognised = []
 
     def make(fps: float | None):
-        made = made_by.session_class()(model or made_by.default_model, input_fps=fps, threads=threads,
-                                       **seeds, **session)
+        made = made_by.open_session(model, input_fps=fps, threads=threads, **seeds, **session)
         if reference is not None:
             recognised.append(made.set_reference(reference, style))
         return made

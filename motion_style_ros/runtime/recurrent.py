@@ -18,7 +18,7 @@ import numpy as np
 
 from motion_style_ros.runtime.backends import BACKENDS
 from motion_style_ros.runtime.contract import RECURRENT, check_card
-from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.defaults import StreamSettings
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.model_step import ModelFrame, Stylized
 from motion_style_ros.runtime.stream import StreamSession
@@ -55,29 +55,17 @@ class RecurrentSession(StreamSession):
     and :class:`~motion_style_ros.runtime.stream.StreamSession`).
 
     ``model``: a shipped model's file name or a path (the card beside it); ``threads``: ONNX
-    Runtime threads; the rest: see :class:`~motion_style_ros.runtime.stream.StreamSession`.
+    Runtime threads; ``settings`` and the stream settings by name (``foot_lock=False``):
+    :class:`~motion_style_ros.runtime.defaults.StreamSettings`.
     Until :meth:`set_style`, every performer gets the model's neutral style (its card's
     ``neutral_style``) at alpha 1.
     """
 
-    def __init__(
-        self,
-        model: str | Path = BACKENDS["recurrent"].default_model,
-        performers: int = 1,
-        input_fps: float | None = None,
-        blend_seconds: float = DEFAULTS["blend_seconds"],
-        threads: int = 1,
-        gap_seconds: float = DEFAULTS["gap_seconds"],
-        follow_seconds: float | None = DEFAULTS["follow_seconds"],
-        foot_lock: bool = DEFAULTS["foot_lock"],
-        phase_seconds: float = 0.0,
-        ground: bool = DEFAULTS["ground"],
-        pipelined: bool = DEFAULTS["pipelined"],
-        conform: bool = DEFAULTS["conform"],
-    ) -> None:
+    def __init__(self, model: str | Path = BACKENDS["recurrent"].default_model, performers: int = 1,
+                 input_fps: float | None = None, threads: int = 1, settings: StreamSettings | None = None,
+                 **stream) -> None:
         path = model_path(str(model))
         card = read_card(path)
         step = RecurrentStep(path, card, threads)
         self.model = step.model
-        super().__init__(card, step, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                         foot_lock, ground, pipelined, conform, phase_seconds)
+        super().__init__(card, step, performers, input_fps, StreamSettings.of(settings, stream))

@@ -31,7 +31,7 @@ from motion_style_ros.runtime import style_bank
 from motion_style_ros.runtime.backends import BACKENDS
 from motion_style_ros.runtime.contract import WINDOWED, check_card
 from motion_style_ros.runtime.controls import unit_interval
-from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.defaults import DEFAULTS, StreamSettings
 from motion_style_ros.runtime.onnx_model import OnnxModel, model_path, read_card
 from motion_style_ros.runtime.windows import OverlapWindows, WindowsSession, latent
 
@@ -108,36 +108,20 @@ class StgcnSession(WindowsSession):
     ``lookahead``: output delay in model frames (0 to ``window - 1``); ``latent_seed``: every
     performer's seed; ``seed_spread``: see the module docstring. Until :meth:`set_style`, every
     performer gets the card's ``neutral_style`` at alpha 1. ``bank``: a style bank file (default:
-    the model's own, beside it, if there is one); ``phase_seconds``: as for the stream session.
+    the model's own, beside it, if there is one); ``settings`` and the stream settings by name:
+    :class:`~motion_style_ros.runtime.defaults.StreamSettings`.
     """
 
-    def __init__(
-        self,
-        model: str | Path = DEFAULT_MODEL,
-        performers: int = 1,
-        input_fps: float | None = None,
-        blend_seconds: float = DEFAULTS["blend_seconds"],
-        threads: int = 1,
-        gap_seconds: float = DEFAULTS["gap_seconds"],
-        follow_seconds: float | None = DEFAULTS["follow_seconds"],
-        window: int | None = None,
-        hop: int = DEFAULTS["hop"],
-        lookahead: int = DEFAULTS["lookahead"],
-        latent_seed: int = 0,
-        foot_lock: bool = DEFAULTS["foot_lock"],
-        ground: bool = DEFAULTS["ground"],
-        seed_spread: float = DEFAULTS["seed_spread"],
-        pipelined: bool = DEFAULTS["pipelined"],
-        conform: bool = DEFAULTS["conform"],
-        bank: str | Path | None = None,
-        phase_seconds: float = 0.0,
-    ) -> None:
+    def __init__(self, model: str | Path = DEFAULT_MODEL, performers: int = 1, input_fps: float | None = None,
+                 threads: int = 1, window: int | None = None, hop: int = DEFAULTS["hop"],
+                 lookahead: int = DEFAULTS["lookahead"], latent_seed: int = 0,
+                 seed_spread: float = DEFAULTS["seed_spread"], bank: str | Path | None = None,
+                 settings: StreamSettings | None = None, **stream) -> None:
         path = model_path(str(model))
         w = StgcnStep(path, read_card(path), threads, window, hop, lookahead, latent_seed, seed_spread, bank)
         self.model, self.mapping, self.style_encoder = w.model, w.mapping, w.style_encoder
         self.model_digest, self.bank, self.bank_path = w.model_digest, w.bank, w.bank_path
-        super().__init__(w, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                         foot_lock, ground, pipelined, conform, phase_seconds)
+        super().__init__(w, performers, input_fps, StreamSettings.of(settings, stream))
 
     @property
     def seed_spread(self) -> float:

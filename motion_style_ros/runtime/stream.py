@@ -76,7 +76,7 @@ from motion_style_ros.core.skeleton import canonical
 from motion_style_ros.core.standing import Standing
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.io.resources import rotation_stats
-from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.defaults import DEFAULTS, StreamSettings
 from motion_style_ros.runtime.model_step import ModelFrame, ModelStep
 from motion_style_ros.runtime.controls import Controls
 from motion_style_ros.runtime.onnx_model import neutral_style
@@ -91,17 +91,14 @@ class StreamSession:
     """A stream of ``performers`` performers through a model step (see the module docstring).
 
     ``card``: the model's card (``styles``, ``fps``, ``neutral_style``); ``input_fps``: the
-    stream's nominal rate (default: the model's), which sets the output latency;
-    ``phase_seconds`` (in [0, 1 / fps)): how much later than the stream's start the model's clock
-    ticks, so that sessions serving several streams in one process run their model frames on
-    different input frames rather than all on the same one. Until :meth:`set_style`, every
-    performer gets the card's ``neutral_style`` at alpha 1.
+    stream's nominal rate (default: the model's), which sets the output latency; ``settings``:
+    the :class:`~motion_style_ros.runtime.defaults.StreamSettings` every backend's session shares
+    (a backend's session takes them as an object, ``settings=``, or by name, ``foot_lock=False``).
+    Until :meth:`set_style`, every performer gets the card's ``neutral_style`` at alpha 1.
     """
 
     def __init__(self, card: dict, step: ModelStep, performers: int, input_fps: float | None,
-                 blend_seconds: float, gap_seconds: float, follow_seconds: float | None,
-                 foot_lock: bool, ground: bool, pipelined: bool, conform: bool,
-                 phase_seconds: float = 0.0) -> None:
+                 settings: StreamSettings) -> None:
         if not (isinstance(performers, (int, np.integer)) and performers >= 1):
             raise MotionStyleError(f"performers must be a whole number, at least 1; got {performers!r}")
         self.card = card
@@ -110,12 +107,14 @@ class StreamSession:
         self.fps = float(card["fps"])
         self.performers = int(performers)
         self.input_fps = self.fps if input_fps is None else _positive(input_fps, "input frame rate")
+        self.settings = settings
+        blend_seconds, follow_seconds, pipelined = settings.blend_seconds, settings.follow_seconds, settings.pipelined
         if not isinstance(pipelined, (bool, np.bool_)):
             raise MotionStyleError(f"pipelined must be true or false, got {pipelined!r}")
         self.pipelined = bool(pipelined)
         self.latency = (step.delay_frames / self.fps + max(0.0, 1.0 / self.fps - 1.0 / self.input_fps)
                         + (1.0 / self.input_fps if self.pipelined else 0.0))
-        self.gap_seconds = _positive(gap_seconds, "gap time")
+        self.gap_seconds = _positive(settings.gap_seconds, "gap time")
         self._follow_gain = (
             0.0 if follow_seconds is None
             else 1.0 - np.exp(-1.0 / (self.fps * _positive(follow_seconds, "follow time")))
@@ -125,12 +124,12 @@ class StreamSession:
         self.controls = Controls(self.styles, self.performers, neutral, blend_seconds)
         self._encoder = StreamEncoder(self.performers, self.fps, self.skeleton)
         self._decoder = StreamDecoder(self.performers, self.fps, self.skeleton)
-        self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if foot_lock else None
-        self._standing = Standing(self.performers, self.fps, self.skeleton) if foot_lock else None
+        self._foot_lock = FootLock(self.performers, self.fps, self.skeleton) if settings.foot_lock else None
+        self._standing = Standing(self.performers, self.fps, self.skeleton) if settings.foot_lock else None
         stats = rotation_stats()
-        self._ground = StreamGround(self.performers, self.fps, stats["ankle_height"]) if ground else None
-        self._rolls = StreamRolls(self.performers, self.fps, stats, self.skeleton) if conform else None
-        self._scale = StreamScale(self.performers, self.fps, stats["scale_reference"]) if conform else None
+        self._ground = StreamGround(self.performers, self.fps, stats["ankle_height"]) if settings.ground else None
+        self._rolls = StreamRolls(self.performers, self.fps, stats, self.skeleton) if settings.conform else None
+        self._scale = StreamScale(self.performers, self.fps, stats["scale_reference"]) if settings.conform else None
         self._contacts = [self.skeleton.index(n) for n in CONTACTS]
         self._ankle_joints = [self.skeleton.index(n) for n in ANKLES]  # what grounding and foot locks read
         self._part = part_of_joints(self.skeleton)  # each joint's part: its column of the intensities
@@ -142,6 +141,7 @@ class StreamSession:
         self._fresh = np.ones(self.performers, dtype=bool)
         self._remeasured = np.zeros(self.performers, dtype=bool)  # see StreamRolls.observe
         step.start(self.performers, self.controls.blend_seconds)
+        phase_seconds = settings.phase_seconds
         if not (isinstance(phase_seconds, (int, float)) and 0.0 <= phase_seconds < 1.0 / self.fps):
             raise MotionStyleError(f"phase_seconds must be in [0, {1.0 / self.fps:g}), got {phase_seconds!r}")
         self._phase = float(phase_seconds)

@@ -8,12 +8,12 @@ reaches them. The defaults of the sessions' own settings come from
 from __future__ import annotations
 
 import array
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from motion_style_ros.core.intensity import PARTS, check_part_alpha
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.runtime.backends import BACKENDS, Backend, with_feature
-from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.defaults import DEFAULTS, StreamSettings
 from motion_style_ros.runtime.intake import Bounds
 from motion_style_ros.runtime.trajectory import VELOCITIES
 from motion_style_ros.runtime.warmup import warm_kernels
@@ -161,17 +161,14 @@ def sessions(spec: Backend, model: str, count: int, values: dict) -> list:
     frames than the one before it (one in input_fps / model fps runs the model), so that streams in
     step do not all run the model on the same one: a window of two performers at once stalled the
     stream 14 ms at 120 Hz."""
-    common = dict(input_fps=values["input_fps"] or None, blend_seconds=values["blend_seconds"],
-                  threads=values["threads"], follow_seconds=values["follow_seconds"] or None,
-                  foot_lock=values["foot_lock"], pipelined=values["pipelined"])
-    if spec.lookahead:
-        common.update(window=values["window"] or None, hop=values["hop"], lookahead=values["lookahead"],
-                      bank=values["style_bank"] or None)
+    stream = StreamSettings(blend_seconds=values["blend_seconds"], follow_seconds=values["follow_seconds"] or None,
+                            foot_lock=values["foot_lock"], pipelined=values["pipelined"])
+    options = dict(input_fps=values["input_fps"] or None, threads=values["threads"], window=values["window"] or None,
+                   hop=values["hop"], lookahead=values["lookahead"], bank=values["style_bank"] or None)
     warm_kernels()  # before the node subscribes: a stream's first frames do not wait for numba
-    make = spec.session_class()
-    first = make(model, **common)
+    first = spec.open_session(model, stream, **options)
     spread = max(1, round(first.input_fps / first.fps))
-    return [first] + [make(model, **common, phase_seconds=(k % spread) / first.input_fps)
+    return [first] + [spec.open_session(model, replace(stream, phase_seconds=(k % spread) / first.input_fps), **options)
                       for k in range(1, count)]
 
 

@@ -23,7 +23,7 @@ from motion_style_ros.core.resample import resample
 from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.io.joint_state import JointStateLayout, rotation_values, rotations_from_values
 from motion_style_ros.io.resources import rotation_stats
-from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.defaults import StreamSettings
 from motion_style_ros.runtime.model_step import ModelFrame, Stylized
 from motion_style_ros.runtime.stream import StreamSession
 
@@ -51,8 +51,7 @@ def warm_kernels() -> float:
     """Compile or load every kernel (once per process); the seconds it took."""
     start = time.monotonic()
     walk = synthetic_motion("walk", 120.0, 1.0)
-    session = StreamSession(_CARD, _Echo(), 1, input_fps=120.0, blend_seconds=0.2, gap_seconds=0.25,
-                            **{k: DEFAULTS[k] for k in ("follow_seconds", "foot_lock", "ground", "pipelined", "conform")})
+    session = StreamSession(_CARD, _Echo(), 1, 120.0, StreamSettings(blend_seconds=0.2, gap_seconds=0.25))
     for k in range(walk.n_frames):
         session.step(walk.rotations[k], walk.root_positions[k], k / walk.fps)
     clip = resample(walk, 30.0)

@@ -30,7 +30,7 @@ from motion_style_ros.core.overlap_add import OverlapAdd
 from motion_style_ros.core.resample import resample
 from motion_style_ros.core.standing import ROOT_MOTION
 from motion_style_ros.errors import MotionStyleError
-from motion_style_ros.runtime.defaults import DEFAULTS
+from motion_style_ros.runtime.defaults import DEFAULTS, StreamSettings
 from motion_style_ros.runtime.onnx_model import model_path, read_card
 from motion_style_ros.runtime.model_step import ModelFrame, Stylized
 from motion_style_ros.runtime.stream import StreamSession
@@ -170,12 +170,10 @@ class WindowsSession(StreamSession):
     looks like each style) and this class sets them as a target."""
 
     def __init__(self, windows: OverlapWindows, performers: int, input_fps: float | None,
-                 blend_seconds: float, gap_seconds: float, follow_seconds: float | None, foot_lock: bool,
-                 ground: bool, pipelined: bool, conform: bool, phase_seconds: float) -> None:
+                 settings: StreamSettings) -> None:
         self.windows = windows
         self.window, self.hop, self.lookahead = windows.window, windows.hop, windows.lookahead
-        super().__init__(windows.card, windows, performers, input_fps, blend_seconds, gap_seconds,
-                         follow_seconds, foot_lock, ground, pipelined, conform, phase_seconds)
+        super().__init__(windows.card, windows, performers, input_fps, settings)
 
     def reference_codes(self, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
@@ -233,38 +231,23 @@ class BanklessSession(WindowsSession):
     default the model's own beside it) of the model ``model`` (default: ``DEFAULT_MODEL``);
     ``window``, ``hop``, ``lookahead`` as for :class:`~motion_style_ros.runtime.stgcn.StgcnSession`. A backend without a bank
     refuses one with ``NO_BANK``'s reason. Until :meth:`set_style`, every performer gets the card's
-    ``neutral_style`` at alpha 1; ``phase_seconds``: as for the stream session."""
+    ``neutral_style`` at alpha 1; ``settings`` and the stream settings by name:
+    :class:`~motion_style_ros.runtime.defaults.StreamSettings`."""
 
     STEP: type[OverlapWindows]
     DEFAULT_MODEL: str
     NO_BANK: str = ""  # why this backend takes no style bank ("": it takes one)
 
-    def __init__(
-        self,
-        model: str | Path | None = None,
-        performers: int = 1,
-        input_fps: float | None = None,
-        blend_seconds: float = DEFAULTS["blend_seconds"],
-        threads: int = 1,
-        gap_seconds: float = DEFAULTS["gap_seconds"],
-        follow_seconds: float | None = DEFAULTS["follow_seconds"],
-        window: int | None = None,
-        hop: int = DEFAULTS["hop"],
-        lookahead: int = DEFAULTS["lookahead"],
-        foot_lock: bool = DEFAULTS["foot_lock"],
-        ground: bool = DEFAULTS["ground"],
-        pipelined: bool = DEFAULTS["pipelined"],
-        conform: bool = DEFAULTS["conform"],
-        bank: str | Path | None = None,
-        phase_seconds: float = 0.0,
-    ) -> None:
+    def __init__(self, model: str | Path | None = None, performers: int = 1, input_fps: float | None = None,
+                 threads: int = 1, window: int | None = None, hop: int = DEFAULTS["hop"],
+                 lookahead: int = DEFAULTS["lookahead"], bank: str | Path | None = None,
+                 settings: StreamSettings | None = None, **stream) -> None:
         if bank is not None and self.NO_BANK:
             raise MotionStyleError(self.NO_BANK)
         path = model_path(str(self.DEFAULT_MODEL if model is None else model))
         windows = self.STEP(path, read_card(path), threads, window, hop, lookahead,
                             **({} if self.NO_BANK else {"bank": bank}))
-        super().__init__(windows, performers, input_fps, blend_seconds, gap_seconds, follow_seconds,
-                         foot_lock, ground, pipelined, conform, phase_seconds)
+        super().__init__(windows, performers, input_fps, StreamSettings.of(settings, stream))
 
     def clear_reference(self, performer: int | None = None) -> None:
         """Every style back to its own input (drops a reference), blended over ``blend_seconds``."""
