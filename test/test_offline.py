@@ -111,3 +111,19 @@ def test_unseen_clips_leave_out_what_a_model_trained_on_and_recognition_is_split
                 assert r["recognised_1_among_styles"] == (r["style"] == likelier)
                 assert r["recognised_1_among_styles"] >= r["recognised_1"]  # a judged target stays one
     assert report["summary"]["style_recognised_1_among_styles"] == 0.5  # one of two styles per clip
+
+
+def test_the_all_styles_model_offers_every_bandai_style_and_restyles_into_one_of_dataset_1(datasets, tmp_path):
+    """``style_erd_22.onnx``: both Bandai sets' styles (a dataset-1 style named like a dataset-2 one
+    with -d1), each reachable from the command line."""
+    from motion_style_ros.io.datasets import index_bandai, style_label
+    from motion_style_ros.runtime.onnx_model import model_path, read_card
+
+    card = read_card(model_path("style_erd_22.onnx"))
+    labels = {style_label(i.dataset, i.style) for i in index_bandai(datasets)}
+    assert set(card["styles"]) == labels and len(labels) == 22
+    source = datasets / "cmu/data/07/07_01.bvh"
+    out = stylize_cli(source, "-o", tmp_path / "walk.bvh", "--model", "style_erd_22.onnx", "--style", "happy")
+    assert out.returncode == 0, out.stderr
+    clip = bvh.read(tmp_path / "walk.bvh")
+    assert np.isfinite(clip.data).all() and clip.n_frames > 100
