@@ -16,11 +16,10 @@ def build_stylizers(args: argparse.Namespace) -> dict:
     """The offline stylizer of every --stylizer, at the published settings with the flags' changes; a
     missing model fails here in one line, before the slow part."""
     from motion_style_ros.evaluation.harness import PUBLISHED
-    from motion_style_ros.runtime.backends import backend
     from motion_style_ros.runtime.offline import stylizer
 
     return {name: stylizer(name, args.model, args.alpha, args.threads, args.seed_spread,
-                           **backend(name).settings(PUBLISHED), **session_overrides(args))
+                           **PUBLISHED, **session_overrides(args))
             for name in args.stylizer or []}
 
 

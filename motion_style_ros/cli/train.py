@@ -196,9 +196,8 @@ def run_pairs(args) -> int:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     pseudo_pairs.save(pairs, out)
-    made = {m: pairs.made_by.count(m) for m in pairs.meta["candidates"]}
     print(f"{pairs.meta['kept']} of {pairs.meta['tried']} clip-style pairs kept "
-          f"({', '.join(f'{m} {n}' for m, n in made.items())}) -> {out}")
+          f"({', '.join(f'{m} {n}' for m, n in pairs.made_counts().items())}) -> {out}")
     return 0
 
 

@@ -223,7 +223,7 @@ def enrolment(style: str, out_dir: Path, model: str | Path | None = None, clips:
     out_dir.mkdir(parents=True, exist_ok=True)
     bank = out_dir / f"enrolled_{style}.json"
     style_bank.write(bank, {style: entry}, session.card["name"], session.model_digest)
-    enrolled = stylizer(backend, str(model), bank=bank, **made_by.settings(PUBLISHED))  # a session per input rate
+    enrolled = stylizer(backend, str(model), bank=bank, **PUBLISHED)  # a session per input rate
     test = held_out_clips(root, progress=progress)
     one_per_cell = {(i.content, i.style): m for i, m in sorted(test, key=lambda c: c[0].name)}
     sources = {"bandai2_test": list(one_per_cell.values()),

@@ -206,8 +206,7 @@ def with_pairs(data: Data, path: str) -> Data:
     styles = np.array([data.styles.index(s) for s in pairs.styles])
     clips = Clips([np.concatenate([x, y], axis=1) for x, y in zip(pairs.inputs, pairs.targets)], styles,
                   np.full(len(styles), -1))
-    made = {m: pairs.made_by.count(m) for m in pairs.meta["candidates"]}
-    record = {**{k: pairs.meta[k] for k in ("clips", "judges", "kept", "tried")}, "made_by": made}
+    record = {**{k: pairs.meta[k] for k in ("clips", "judges", "kept", "tried")}, "made_by": pairs.made_counts()}
     names = tuple(dict.fromkeys((*data.unlabelled_names, *pairs.clips)))
     return replace(data, pairs=clips, pairs_record=record, unlabelled_names=names)
 

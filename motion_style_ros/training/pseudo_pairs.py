@@ -29,8 +29,10 @@ from motion_style_ros.core.mirror import mirror as mirror_motion
 from motion_style_ros.core.resample import at_speed, resample
 from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.evaluation.judges import Judge
+from motion_style_ros.evaluation.unseen import offered_columns
 from motion_style_ros.io import files
 from motion_style_ros.io.resources import rotation_stats
+from motion_style_ros.runtime import offline
 from motion_style_ros.training.content import FRAME
 from motion_style_ros.training.unlabelled import conditioning, sources
 
@@ -74,6 +76,10 @@ class Pairs:
     tried: list[dict]
     meta: dict
 
+    def made_counts(self) -> dict[str, int]:
+        """How many kept pairs each candidate made (every candidate, in order)."""
+        return {m: self.made_by.count(m) for m in self.meta["candidates"]}
+
 
 Stylize = Callable[[Motion, str], Motion]
 
@@ -106,14 +112,12 @@ def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str],
     ``speeds`` and mirrored, :func:`variants`) into every one of ``styles`` by every candidate, at
     ``fps``; the best recognised output of each kept. ``stylizers``: the candidates' stylizers by
     name (default: their offline sessions)."""
-    from motion_style_ros.runtime import offline
-
     stats = rotation_stats()
     style_judge, content_judge = Judge("style", threads, panel=PANEL), Judge("content", threads, panel=PANEL)
     unknown = [s for s in styles if s not in style_judge.labels]
     if unknown:
         raise MotionStyleError(f"the panel-{PANEL} style judge does not know {', '.join(unknown)}")
-    offered = [style_judge.labels.index(s) for s in styles]
+    (offered,) = offered_columns([style_judge], styles)
     stylizers = stylizers or {str(c): offline.stylizer(c.backend, c.model, threads=threads) for c in candidates}
     clips = [(name, variant, moved) for spec in specs for name, motion in sources(spec, stats)
              for variant, moved in variants(motion, speeds, mirror)]
