@@ -117,7 +117,7 @@ class RosCli:
     def ros2(self, *args: str, timeout: float = 60) -> subprocess.CompletedProcess:
         return self.run("ros2", *args, timeout=timeout)
 
-    def ros2_graph(self, *args: str, tries: int = 4, until=None, daemon: bool = False):
+    def ros2_graph(self, *args: str, tries: int = 4, until=None, daemon: bool = False, timeout: float = 60):
         """A verb that looks the graph up (``ros2 node list``, ``ros2 lifecycle``, which also wants
         the node's lifecycle services): tried again while what it wants was not discovered yet
         ("Node not found", or ``until(output)`` false), as a user would on a loaded machine. With
@@ -125,7 +125,7 @@ class RosCli:
         started one with ``ros2 daemon start`` and stops it) it asks the daemon's graph."""
         for attempt in range(tries):
             options = [] if daemon else ["--no-daemon", "--spin-time", str(float(SPIN) * 2**attempt)]
-            out = self.ros2(*args, *options)
+            out = self.ros2(*args, *options, timeout=timeout)
             if "Node not found" not in out.stdout + out.stderr and (until is None or until(out)):
                 break
             time.sleep(0.5)
