@@ -19,6 +19,7 @@ from motion_style_ros.training import pseudo_pairs  # noqa: E402
 from motion_style_ros.training.content import FRAME  # noqa: E402
 from motion_style_ros.training.export import CMU_ACKNOWLEDGEMENT, licence_fields  # noqa: E402
 from motion_style_ros.training.loop import card_record  # noqa: E402
+from motion_style_ros.training.most import trainer as most_trainer  # noqa: E402
 from motion_style_ros.training.recurrent import trainer  # noqa: E402
 from motion_style_ros.training.unlabelled import conditioned, conditioning, sources  # noqa: E402
 
@@ -100,16 +101,18 @@ def test_the_file_round_trips_and_a_bad_one_is_one_line(pairs, tmp_path):
     assert "\n" not in str(err.value)
 
 
-def test_a_style_erd_step_is_held_to_the_targets_and_the_card_names_the_clips(datasets, pairs, tmp_path):
+@pytest.mark.parametrize("module, sized", [(trainer, {"crop_frames": 8}), (most_trainer, {})],
+                         ids=["recurrent", "most"])
+def test_a_step_is_held_to_the_targets_and_the_card_names_the_clips(datasets, pairs, tmp_path, module, sized):
     path = tmp_path / "pairs.npz"
     pseudo_pairs.save(pairs, path)
     labelled = training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
-    cfg = trainer.tiny_config(distil=str(path), crop_frames=8)
+    cfg = module.tiny_config(distil=str(path), **sized)
     data = training_data.with_pairs(labelled, cfg.distil)
     assert len(data.pairs.features) == len(pairs.styles)
     runs = {}
-    for key, d, c in (("with", data, cfg), ("without", labelled, trainer.tiny_config(crop_frames=8))):
-        run = trainer.Trainer(c, d, tmp_path / key, progress=False)
+    for key, d, c in (("with", data, cfg), ("without", labelled, module.tiny_config(**sized))):
+        run = module.Trainer(c, d, tmp_path / key, progress=False)
         run.run(iterations=2, log_every=1, val_every=1000)
         runs[key] = run
     terms = runs["with"].step(2)
@@ -132,9 +135,9 @@ def test_pairs_into_a_style_the_model_lacks_are_refused(datasets, pairs, tmp_pat
         training_data.with_pairs(labelled, str(path))
 
 
-def test_only_the_recurrent_trainer_takes_pairs_and_bad_flags_are_one_line(capsys, tmp_path):
+def test_a_trainer_without_a_distillation_term_refuses_pairs_and_bad_flags_are_one_line(capsys, tmp_path):
     assert main(["train", "stgcn", "--distil", str(tmp_path / "p.npz"), "--out", str(tmp_path)]) == 2
-    assert "only 'train recurrent'" in capsys.readouterr().err
+    assert "'train stgcn' has no distillation term" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--speeds", "-1", "--out", str(tmp_path / "p.npz")]) == 2
     assert "--speeds takes positive numbers" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--candidates", "nope", "--out", str(tmp_path / "p.npz")]) == 2

@@ -6,6 +6,7 @@ the resuming command, the report line). Torch is imported only when a run starts
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
@@ -102,8 +103,9 @@ def stylizer_run(args, module: str, unlabelled: str | None = None, check=None):
     fields, recipe = data_fields(args)
     if unlabelled and fields["unlabelled"]:
         raise MotionStyleError(f"--unlabelled: {unlabelled}; 'train recurrent' does")
-    if module != "recurrent" and fields["distil"]:
-        raise MotionStyleError("--distil: only 'train recurrent' learns from pseudo-pairs so far")
+    if fields["distil"] and "w_distil" not in {f.name for f in dataclasses.fields(trainer.Config)}:
+        raise MotionStyleError(f"--distil: 'train {module}' has no distillation term; "
+                               "'train recurrent' and 'train most' have")
     return trainer, out, fields, recipe
 
 

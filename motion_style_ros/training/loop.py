@@ -34,6 +34,7 @@ from motion_style_ros.training.data import (
     load_for,
     normalisation,
     recipe,
+    windows,
 )
 from motion_style_ros.training.losses import Losses
 
@@ -88,6 +89,18 @@ class ResumableTrainer(ABC):
     def synced(self, module: nn.Module, unused: bool = False) -> nn.Module:
         """:func:`hardware.synced` on this trainer's device."""
         return hardware.synced(module, self.device, unused)
+
+    def pair_windows(self, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``cfg.distil_batch`` windows of the pseudo-pairs (``DataConfig.distil``): inputs
+        ``(B, window, F)``, their styles and their targets' ``[root | rot6d]`` frames; all empty
+        where the run distils nothing."""
+        pairs, width = self.data.pairs, self.data.splits["train"].features[0].shape[1]
+        if pairs is None:
+            empty = torch.zeros((0, self.cfg.window, width), device=self.device)
+            return empty, torch.zeros(0, dtype=torch.long, device=self.device), empty[..., :0]
+        w, styles, _ = windows(pairs, self.cfg.window, self.cfg.distil_batch, rng)
+        w, styles = self.shard(w, styles)
+        return w[..., :width], styles, w[..., width:]
 
     @abstractmethod
     def step(self, iteration: int) -> dict[str, float]:

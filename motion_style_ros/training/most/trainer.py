@@ -103,6 +103,11 @@ class Config(ContentConfig):
     # content network trained first on the train takes, training.content; not in the paper; off in
     # the shipped model)
     w_content_net: float = 0.0
+    # windows of the pseudo-pairs (DataConfig.distil) per iteration, each restyled like a real
+    # window of its pair's style and held to the pair's target by the reconstruction terms,
+    # weighted w_distil (not in the paper)
+    distil_batch: int = 8
+    w_distil: float = 1.0
     # reconstruction terms (training.losses.Losses)
     w_pos: float = 0.5
     w_vel: float = 1.0
@@ -165,7 +170,7 @@ def content_change(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
 class Passes(nn.Module):
     """The generator side of one iteration as one forward call (so that ``DistributedDataParallel``
     sees one forward per backward): the transfer, its twin from the second style window (no
-    gradient), the reconstruction and both cycles."""
+    gradient), the reconstruction, both cycles and the pseudo-pairs' transfers ("taught")."""
 
     def __init__(self, model: MoST, losses: Losses) -> None:
         super().__init__()
@@ -178,8 +183,8 @@ class Passes(nn.Module):
         vel = torch.cat([views["vel"][:, :1], views["vel"]], dim=1)
         return torch.cat([frames, views["pos"].flatten(-2), vel.flatten(-2), contacts], dim=-1)
 
-    def forward(self, content: torch.Tensor, style: torch.Tensor, style2: torch.Tensor
-                ) -> dict[str, torch.Tensor]:
+    def forward(self, content: torch.Tensor, style: torch.Tensor, style2: torch.Tensor,
+                pairs: torch.Tensor, pair_styles: torch.Tensor) -> dict[str, torch.Tensor]:
         m = self.model
         contacts = content[..., self.losses.contact_cols]
         enc_c, enc_s = m.encoder(content), m.encoder(style)
@@ -192,7 +197,8 @@ class Passes(nn.Module):
         return {"fake": fake, "fake_full": fake_full, "twin": twin, "rec": rec,
                 "cyc_content": m.transfer(enc_f, enc_c, fake_full),
                 "cyc_style": m.transfer(enc_s, enc_f, style),
-                "content_fake": enc_f[1], "content_in": enc_c[1]}
+                "content_fake": enc_f[1], "content_in": enc_c[1],
+                "taught": m(pairs, pair_styles) if len(pairs) else pairs}
 
 
 class Trainer(ResumableTrainer):
@@ -265,6 +271,11 @@ class Trainer(ResumableTrainer):
         target = other_styles(style, n_styles, rng)
         s1, s2, _ = style_pairs(self.data.splits["train"], cfg.window, target.numpy(), rng)
         x, content, target, s1, s2 = self.shard(x, content, target, s1, s2)
+        # the pseudo-pairs, each restyled like a real window of its pair's style
+        pairs, pair_styles, pair_targets = self.pair_windows(rng)
+        if len(pairs):
+            pair_styles = style_windows(self.data.splits["train"], cfg.window, pair_styles.cpu().numpy(),
+                                        rng).to(self.device)
 
         # discriminator: real style windows of their style vs transfers to it
         self.dis.requires_grad_(True)
@@ -285,7 +296,7 @@ class Trainer(ResumableTrainer):
 
         # encoder, modulator, generator
         self.dis.requires_grad_(False)
-        out = self.passes(x, s1, s2)
+        out = self.passes(x, s1, s2, pairs, pair_styles)
         n_out = self.most.cfg.n_out
         adv = F.softplus(-self.dis(out["fake_full"]).gather(1, target[:, None])[:, 0]).mean()
         rec = self._rec(out["rec"], x[..., :n_out])
@@ -295,12 +306,13 @@ class Trainer(ResumableTrainer):
         vel, acc, foot = self.physics(out["fake"], x)
         foot = 0.5 * (foot + self.losses.foot(self.losses.views(out["cyc_content"]), x))
         kept = content_change(out["content_fake"], out["content_in"])
+        distil = self._rec(out["taught"], pair_targets) if len(pair_targets) else torch.zeros((), device=self.device)
         classified = torch.zeros((), device=self.device)
         if self.content is not None:
             classified = F.cross_entropy(self.content(self.losses.views(out["fake"])["content"])[0], content)
         total = (cfg.w_adv * adv + cfg.w_rec * rec + cfg.w_cyc_content * cyc_c + cfg.w_cyc_style * cyc_s
                  + cfg.w_dis * dis + cfg.w_smooth_vel * vel + cfg.w_smooth_acc * acc + cfg.w_foot * foot
-                 + cfg.w_content * kept + cfg.w_content_net * classified)
+                 + cfg.w_content * kept + cfg.w_content_net * classified + cfg.w_distil * distil)
         self.opt_g.zero_grad()
         total.backward()
         self.opt_g.step()
@@ -308,7 +320,7 @@ class Trainer(ResumableTrainer):
         return {"adv": adv.item(), "critic": critic.item(), "r1": r1.item(), "rec": rec.item(),
                 "cyc_content": cyc_c.item(), "cyc_style": cyc_s.item(), "dis": dis.item(),
                 "vel": vel.item(), "acc": acc.item(), "foot": foot.item(), "content": kept.item(),
-                "content_net": classified.item()}
+                "content_net": classified.item(), **({"distil": distil.item()} if len(pair_targets) else {})}
 
     @torch.no_grad()
     def validate(self, model: MoST | None = None) -> dict[str, float]:

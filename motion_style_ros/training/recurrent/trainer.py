@@ -240,17 +240,6 @@ class Trainer(ResumableTrainer):
                 "adv": adv.item(), "per": per.item(), **({"distil": distil.item()} if len(pair_targets) else {}), "foot": foot.item(), "critic": critic.item(), "gp": gp.item(),
                 **({"style_told": told.item()} if self.adversary is not None else {})}
 
-    def pair_windows(self, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Windows of the pseudo-pairs: inputs ``(B, window, F)``, their styles and their targets'
-        ``[root | rot6d]`` frames (empty where the run distils nothing)."""
-        pairs, width = self.data.pairs, self.data.splits["train"].features[0].shape[1]
-        if pairs is None:
-            empty = torch.zeros((0, self.cfg.window, width), device=self.device)
-            return empty, torch.zeros(0, dtype=torch.long, device=self.device), empty[..., :FRAME]
-        w, styles, _ = windows(pairs, self.cfg.window, self.cfg.distil_batch, rng)
-        w, styles = self.shard(w, styles)
-        return w[..., :width], styles, w[..., width:]
-
     @torch.no_grad()
     def validate(self, model: StyleERD | None = None) -> dict[str, float]:
         """Reconstruction loss of ``model`` (default: the weight average) on fixed val windows
