@@ -21,6 +21,7 @@ from motion_style_ros.training.export import CMU_ACKNOWLEDGEMENT, licence_fields
 from motion_style_ros.training.loop import card_record  # noqa: E402
 from motion_style_ros.training.most import trainer as most_trainer  # noqa: E402
 from motion_style_ros.training.recurrent import trainer  # noqa: E402
+from motion_style_ros.training.stgcn import trainer as stgcn_trainer  # noqa: E402
 from motion_style_ros.training.unlabelled import conditioned, conditioning, sources  # noqa: E402
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
@@ -101,8 +102,8 @@ def test_the_file_round_trips_and_a_bad_one_is_one_line(pairs, tmp_path):
     assert "\n" not in str(err.value)
 
 
-@pytest.mark.parametrize("module, sized", [(trainer, {"crop_frames": 8}), (most_trainer, {})],
-                         ids=["recurrent", "most"])
+@pytest.mark.parametrize("module, sized", [(trainer, {"crop_frames": 8}), (most_trainer, {}), (stgcn_trainer, {})],
+                         ids=["recurrent", "most", "stgcn"])
 def test_a_step_is_held_to_the_targets_and_the_card_names_the_clips(datasets, pairs, tmp_path, module, sized):
     path = tmp_path / "pairs.npz"
     pseudo_pairs.save(pairs, path)
@@ -136,8 +137,8 @@ def test_pairs_into_a_style_the_model_lacks_are_refused(datasets, pairs, tmp_pat
 
 
 def test_a_trainer_without_a_distillation_term_refuses_pairs_and_bad_flags_are_one_line(capsys, tmp_path):
-    assert main(["train", "stgcn", "--distil", str(tmp_path / "p.npz"), "--out", str(tmp_path)]) == 2
-    assert "'train stgcn' has no distillation term" in capsys.readouterr().err
+    assert main(["train", "saae", "--distil", str(tmp_path / "p.npz"), "--out", str(tmp_path)]) == 2
+    assert "'train saae' has no distillation term" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--speeds", "-1", "--out", str(tmp_path / "p.npz")]) == 2
     assert "--speeds takes positive numbers" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--candidates", "nope", "--out", str(tmp_path / "p.npz")]) == 2

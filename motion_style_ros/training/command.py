@@ -105,7 +105,7 @@ def stylizer_run(args, module: str, unlabelled: str | None = None, check=None):
         raise MotionStyleError(f"--unlabelled: {unlabelled}; 'train recurrent' does")
     if fields["distil"] and "w_distil" not in {f.name for f in dataclasses.fields(trainer.Config)}:
         raise MotionStyleError(f"--distil: 'train {module}' has no distillation term; "
-                               "'train recurrent' and 'train most' have")
+                               "'train recurrent', 'most' and 'stgcn' have")
     return trainer, out, fields, recipe
 
 

@@ -64,6 +64,11 @@ class Config(DataConfig):
     # styles: adversarial, style, cycle and identity terms with the code the style encoder reads
     # in them (never shown to the critic as real, never in its classifier's loss)
     unlabelled_batch: int = 4
+    # windows of the pseudo-pairs (DataConfig.distil) per iteration, each transferred with a
+    # mapped code of its pair's style (a random z, as a latent seed gives) and held to the pair's
+    # target by the reconstruction terms, weighted w_distil (not in the paper)
+    distil_batch: int = 8
+    w_distil: float = 1.0
     lr: float = 2e-4  # generator, style encoder, discriminator
     lr_mapping: float = 2e-5
     betas: tuple[float, float] = (0.0, 0.99)
@@ -247,9 +252,10 @@ class Trainer(ResumableTrainer):
         foot_vel = fake_views["vel"][:, :, self.losses.feet]
         frames = self.mean_over_processes(still.sum())  # so N processes' mean is one's whole-batch term
         foot = (still * foot_vel.pow(2)).sum() / frames.clamp(min=1.0) / self.losses.vel_scale ** 2
+        distil = self.distil(code_rng)
         w_ds = cfg.w_ds * max(0.0, 1.0 - iteration / cfg.ds_iterations)
         total = (cfg.w_adv * adv + cfg.w_sty * sty - w_ds * ds + cfg.w_cyc * cyc + cfg.w_id * idt
-                 + cfg.w_cls * cls + cfg.w_foot * foot)
+                 + cfg.w_cls * cls + cfg.w_foot * foot + cfg.w_distil * distil)
         self.opt_g.zero_grad()
         total.backward()
         self.opt_g.step()
@@ -258,7 +264,19 @@ class Trainer(ResumableTrainer):
             update_average(avg, live, cfg.ema)
         return {"adv": adv.item(), "critic": critic.item(), "r1": r1.item(), "sty": sty.item(),
                 "ds": ds.item(), "cyc": cyc.item(), "id": idt.item(), "cls": cls.item(),
-                "foot": foot.item(), "rec": (cyc + idt).item()}
+                "foot": foot.item(), "rec": (cyc + idt).item(),
+                **({"distil": distil.item()} if self.data.pairs is not None else {})}
+
+    def distil(self, rng: np.random.Generator) -> torch.Tensor:
+        """The pseudo-pairs' term: their inputs transferred with a mapped code of their style (a
+        random ``z``, as a latent seed gives one), against their targets (zero without pairs)."""
+        pairs, styles, targets = self.pair_windows(rng)
+        if not len(pairs):
+            return torch.zeros((), device=self.device)
+        z = torch.from_numpy(rng.standard_normal((len(pairs), self.cfg.latent_dim)).astype(np.float32))
+        codes = self.mapping_synced(z.to(self.device), F.one_hot(styles, len(self.data.styles)).float())
+        taught = self.losses.views(self.gen_synced(pairs, codes))
+        return sum(self.losses.reconstruction(taught, self.losses.views(targets)).values())
 
     @torch.no_grad()
     def validate(self, model: Generator | None = None) -> dict[str, float]:
