@@ -3,6 +3,8 @@ frame for frame; a target is kept only where judge panel 1 recognises its style 
 candidate wins); the file round-trips and a bad one is one line; a Style-ERD step is held to the
 targets, and the card names the clips (so 'eval --unseen' leaves them out) and CMU."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -16,6 +18,7 @@ from motion_style_ros.io.datasets import index_bandai, load_bandai  # noqa: E402
 from motion_style_ros.io.resources import rotation_stats  # noqa: E402
 from motion_style_ros.training import data as training_data  # noqa: E402
 from motion_style_ros.training import pseudo_pairs  # noqa: E402
+from motion_style_ros.training.command import PAIRS_DEFAULTS  # noqa: E402
 from motion_style_ros.training.content import FRAME  # noqa: E402
 from motion_style_ros.training.export import CMU_ACKNOWLEDGEMENT, licence_fields  # noqa: E402
 from motion_style_ros.training.loop import card_record  # noqa: E402
@@ -124,6 +127,28 @@ def test_a_step_is_held_to_the_targets_and_the_card_names_the_clips(datasets, pa
     assert record["clips"]["unlabelled"] == ["cmu 07_01"]
     assert record["clips"]["pairs"]["kept"] == len(pairs.styles) and "distilled" in record
     assert CMU_ACKNOWLEDGEMENT in licence_fields({**record, "config": {}})["attribution"]
+
+
+def test_a_run_given_clips_makes_their_pairs_once_into_its_folder(pairs, tmp_path):
+    """``--distil CLIPS``: the pairs are made as ``train pairs`` makes them by default, and a resumed
+    run reads them again instead of making them anew; other clips make new pairs; a file is used as
+    it is, and a missing one is one line."""
+    calls = []
+
+    def made(specs, candidates, styles, fps, threads, progress, speeds, mirror):
+        calls.append((specs, [str(c) for c in candidates], speeds, mirror))
+        return dataclasses.replace(pairs, meta={**pairs.meta, "clips": list(specs)})
+
+    folder = tmp_path / "most_5"
+    first = pseudo_pairs.for_run("cmu:07_01", folder, 30.0, progress=False, make_pairs=made)
+    assert first == str(folder / "pairs.npz") and len(pseudo_pairs.load(first).styles) == len(pairs.styles)
+    assert calls == [(("cmu:07_01",), PAIRS_DEFAULTS["candidates"].split(","), (0.8, 1.25), True)]
+    assert pseudo_pairs.for_run("cmu:07_01", folder, 30.0, make_pairs=made) == first and len(calls) == 1
+    pseudo_pairs.for_run("cmu:07_01,cmu:02_01", folder, 30.0, progress=False, make_pairs=made)
+    assert len(calls) == 2 and pseudo_pairs.load(first).meta["clips"] == ["cmu:07_01", "cmu:02_01"]
+    assert pseudo_pairs.for_run(first, tmp_path / "other", 30.0, make_pairs=made) == first and len(calls) == 2
+    with pytest.raises(MotionStyleError, match="no pairs file .*nope.npz"):
+        pseudo_pairs.for_run(str(tmp_path / "nope.npz"), folder, 30.0, make_pairs=made)
 
 
 def test_pairs_into_a_style_the_model_lacks_are_refused(datasets, pairs, tmp_path):

@@ -4,6 +4,10 @@ BVH folder (``--data``), on any device, in one process or several under ``torchr
 
 from __future__ import annotations
 
+import argparse
+
+from motion_style_ros.training.command import PAIRS_DEFAULTS
+
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "train", help="train models (needs torch)",
@@ -42,14 +46,16 @@ def add_parser(subparsers):
                     "trained on them.")
     pairs.add_argument("--clips", required=True, metavar="SPEC,SPEC",
                        help="cmu:SUBJECT, cmu:SUBJECT_TRIAL, a BVH file or a folder of them, any rig")
-    pairs.add_argument("--candidates", default="recurrent,stgcn,most,saae:saae_model1.onnx,saae",
+    pairs.add_argument("--candidates", default=PAIRS_DEFAULTS["candidates"],
                        metavar="BACKEND[:MODEL],...",
                        help="the stylizers whose outputs may become targets (default: every shipped model)")
     pairs.add_argument("--styles", default="", metavar="NAME,NAME",
                        help="target styles (default: those of the shipped recurrent model)")
-    pairs.add_argument("--speeds", default="", metavar="S,S",
-                       help="also every clip played at these speeds, e.g. 0.8,1.25 (default: none)")
-    pairs.add_argument("--mirror", action="store_true", help="also every clip mirrored left-right")
+    speeds = ",".join(f"{v:g}" for v in PAIRS_DEFAULTS["speeds"])
+    pairs.add_argument("--speeds", default=speeds, metavar="S,S",
+                       help=f"also every clip played at these speeds; '' for none (default: {speeds})")
+    pairs.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=PAIRS_DEFAULTS["mirror"],
+                       help="also every clip (and speed copy) mirrored left-right (default: on)")
     pairs.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     pairs.add_argument("--out", required=True, help="the pairs file to write (.npz)")
     pairs.set_defaults(func=run_pairs)
@@ -140,10 +146,12 @@ def _data_flags(parser) -> None:
                              "model holds on other capture setups: cmu:SUBJECT (e.g. cmu:07), a BVH file "
                              "or a folder of them, any rig; 'eval --unseen' then leaves them out "
                              "(default: none)")
-    parser.add_argument("--distil", default="", metavar="PAIRS",
-                        help="also hold the model to the targets of a pseudo-pairs file ('motion-style train "
-                             "pairs'): other capture setups' clips in the style panel 1 recognised; 'eval "
-                             "--unseen' then leaves those clips out (default: none)")
+    parser.add_argument("--distil", default="", metavar="PAIRS|SPEC,SPEC",
+                        help="also hold the model to pseudo-pairs: other capture setups' clips as the shipped "
+                             "models stylize them, where panel 1 recognised the style; a file 'motion-style "
+                             "train pairs' wrote, or clip specs (cmu:07,cmu:02_01) whose pairs are made as "
+                             "'train pairs' makes them, once, into the checkpoint folder; 'eval --unseen' then "
+                             "leaves those clips out (default: none)")
 
 
 def run_judges(args) -> int:
@@ -176,15 +184,13 @@ def run_pairs(args) -> int:
 
     from motion_style_ros.errors import MotionStyleError
     from motion_style_ros.runtime.backends import backend
-    from motion_style_ros.runtime.onnx_model import model_path, read_card
     from motion_style_ros.training import pseudo_pairs
     from motion_style_ros.training.data import FPS
 
     candidates = [pseudo_pairs.Candidate.parse(c) for c in args.candidates.split(",") if c]
     for c in candidates:
         backend(c.backend)  # an unknown name: one line naming the backends
-    styles = ([s for s in args.styles.split(",") if s]
-              or read_card(model_path(backend("recurrent").default_model))["styles"])
+    styles = [s for s in args.styles.split(",") if s] or pseudo_pairs.default_styles()
     try:
         speeds = tuple(float(v) for v in args.speeds.split(",") if v)
     except ValueError:

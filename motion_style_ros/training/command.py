@@ -11,6 +11,10 @@ from typing import NamedTuple
 
 DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
                  "unlabelled": "", "distil": ""}
+# what 'train pairs' and a run's '--distil CLIPS' make (training.pseudo_pairs): every shipped model
+# a candidate; every clip also at two speeds, and each of those mirrored
+PAIRS_DEFAULTS = {"candidates": "recurrent,stgcn,most,saae:saae_model1.onnx,saae", "speeds": (0.8, 1.25),
+                  "mirror": True}
 
 
 class TrainCommand(NamedTuple):
@@ -106,7 +110,27 @@ def stylizer_run(args, module: str, unlabelled: str | None = None, check=None):
     if fields["distil"] and "w_distil" not in {f.name for f in dataclasses.fields(trainer.Config)}:
         raise MotionStyleError(f"--distil: 'train {module}' has no distillation term; "
                                "'train recurrent', 'most' and 'stgcn' have")
+    if fields["distil"]:
+        fields["distil"] = distil_pairs(args, trainer, fields)
     return trainer, out, fields, recipe
+
+
+def distil_pairs(args, trainer, fields: dict) -> str:
+    """The pairs file of ``--distil``: the file given, or the pairs of the clips given, made into the
+    run's checkpoint folder unless they are there (:func:`training.pseudo_pairs.for_run`)."""
+    import os
+
+    from motion_style_ros.errors import MotionStyleError
+    from motion_style_ros.training import pseudo_pairs
+    from motion_style_ros.training.data import FPS
+    from motion_style_ros.training.loop import CHECKPOINTS
+
+    folder = trainer.Trainer.folder(CHECKPOINTS, args.seed, fields["data"])
+    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not (folder / "pairs.npz").is_file():
+        if not os.path.isfile(fields["distil"]):
+            raise MotionStyleError("--distil CLIPS under torchrun: make the pairs first ('motion-style train "
+                                   "pairs --clips CLIPS --out pairs.npz') and give the file")
+    return pseudo_pairs.for_run(fields["distil"], folder, FPS, threads=args.threads)
 
 
 def run_settings(args, target: str, recipe: str, before: str = "", after: str = "") -> dict:

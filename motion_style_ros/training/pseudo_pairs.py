@@ -33,6 +33,7 @@ from motion_style_ros.evaluation.unseen import offered_columns
 from motion_style_ros.io import files
 from motion_style_ros.io.resources import rotation_stats
 from motion_style_ros.runtime import offline
+from motion_style_ros.training.command import PAIRS_DEFAULTS
 from motion_style_ros.training.content import FRAME
 from motion_style_ros.training.unlabelled import conditioning, sources
 
@@ -154,6 +155,37 @@ def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str],
                   "fps": fps, "judges": [style_judge.model.path.name, content_judge.model.path.name],
                   "kept": len(pairs.styles), "tried": len(pairs.tried)}
     return pairs
+
+
+def default_styles() -> list[str]:
+    """The styles pairs are made into unless told: the shipped recurrent model's."""
+    from motion_style_ros.runtime.backends import backend
+    from motion_style_ros.runtime.onnx_model import model_path, read_card
+
+    return read_card(model_path(backend("recurrent").default_model))["styles"]
+
+
+def for_run(distil: str, folder: Path, fps: float, threads: int = 1, progress: bool = True,
+            make_pairs: Callable[..., Pairs] | None = None) -> str:
+    """The pairs file a training run distils from (its ``--distil``): the file itself where it names
+    one; else clip specs, whose pairs are made once as ``train pairs --clips`` makes them by default
+    into the run's checkpoint ``folder`` (``pairs.npz``) and read again when the run resumes, so that
+    a distilled model's recipe is one resumable command. ``make_pairs``: :func:`make` (tests)."""
+    if Path(distil).is_file():
+        return distil
+    if distil.endswith(".npz"):
+        raise MotionStyleError(f"--distil: no pairs file {distil} (give a file 'motion-style train pairs' "
+                               "wrote, or clip specs such as cmu:07 to make them for this run)")
+    specs = [s for s in distil.split(",") if s]
+    path = folder / "pairs.npz"
+    if path.is_file() and load(path).meta["clips"] == specs:
+        return str(path)
+    candidates = [Candidate.parse(c) for c in PAIRS_DEFAULTS["candidates"].split(",")]
+    pairs = (make_pairs or make)(tuple(specs), candidates, default_styles(), fps, threads, progress,
+                                 speeds=PAIRS_DEFAULTS["speeds"], mirror=PAIRS_DEFAULTS["mirror"])
+    folder.mkdir(parents=True, exist_ok=True)
+    save(pairs, path)
+    return str(path)
 
 
 def save(pairs: Pairs, path: Path) -> None:
