@@ -24,6 +24,7 @@ from motion_style_ros.training.export import CMU_ACKNOWLEDGEMENT, licence_fields
 from motion_style_ros.training.loop import card_record  # noqa: E402
 from motion_style_ros.training.most import trainer as most_trainer  # noqa: E402
 from motion_style_ros.training.recurrent import trainer  # noqa: E402
+from motion_style_ros.training.saae import trainer as saae_trainer  # noqa: E402
 from motion_style_ros.training.stgcn import trainer as stgcn_trainer  # noqa: E402
 from motion_style_ros.training.unlabelled import conditioned, conditioning, sources  # noqa: E402
 
@@ -105,8 +106,9 @@ def test_the_file_round_trips_and_a_bad_one_is_one_line(pairs, tmp_path):
     assert "\n" not in str(err.value)
 
 
-@pytest.mark.parametrize("module, sized", [(trainer, {"crop_frames": 8}), (most_trainer, {}), (stgcn_trainer, {})],
-                         ids=["recurrent", "most", "stgcn"])
+@pytest.mark.parametrize("module, sized", [
+    (trainer, {"crop_frames": 8}), (most_trainer, {}), (stgcn_trainer, {}), (saae_trainer, {}),
+    (saae_trainer, {"variant": "model1"})], ids=["recurrent", "most", "stgcn", "saae_model2", "saae_model1"])
 def test_a_step_is_held_to_the_targets_and_the_card_names_the_clips(datasets, pairs, tmp_path, module, sized):
     path = tmp_path / "pairs.npz"
     pseudo_pairs.save(pairs, path)
@@ -151,6 +153,15 @@ def test_a_run_given_clips_makes_their_pairs_once_into_its_folder(pairs, tmp_pat
         pseudo_pairs.for_run(str(tmp_path / "nope.npz"), folder, 30.0, make_pairs=made)
 
 
+def test_the_plain_saae_has_no_style_input_to_distil_into(datasets, pairs, tmp_path):
+    path = tmp_path / "pairs.npz"
+    pseudo_pairs.save(pairs, path)
+    labelled = training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
+    data = training_data.with_pairs(labelled, str(path))
+    with pytest.raises(MotionStyleError, match="plain SAAE has no style input.*model1 and model2 have"):
+        saae_trainer.Trainer(saae_trainer.tiny_config(variant="saae", distil=str(path)), data, tmp_path)
+
+
 def test_pairs_into_a_style_the_model_lacks_are_refused(datasets, pairs, tmp_path):
     path = tmp_path / "pairs.npz"
     pseudo_pairs.save(pairs, path)
@@ -161,9 +172,9 @@ def test_pairs_into_a_style_the_model_lacks_are_refused(datasets, pairs, tmp_pat
         training_data.with_pairs(labelled, str(path))
 
 
-def test_a_trainer_without_a_distillation_term_refuses_pairs_and_bad_flags_are_one_line(capsys, tmp_path):
-    assert main(["train", "saae", "--distil", str(tmp_path / "p.npz"), "--out", str(tmp_path)]) == 2
-    assert "'train saae' has no distillation term" in capsys.readouterr().err
+def test_bad_pairs_flags_are_one_line(capsys, tmp_path):
+    assert main(["train", "most", "--distil", str(tmp_path / "p.npz"), "--out", str(tmp_path)]) == 2
+    assert "no pairs file" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--speeds", "-1", "--out", str(tmp_path / "p.npz")]) == 2
     assert "--speeds takes positive numbers" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--candidates", "nope", "--out", str(tmp_path / "p.npz")]) == 2

@@ -38,7 +38,7 @@ def add_parser(subparsers):
     _run_flags(judges)
     judges.set_defaults(func=run_judges)
     pairs = targets.add_parser(
-        "pairs", help="pseudo-pairs from other capture setups, for 'train recurrent|most|stgcn --distil'",
+        "pairs", help="pseudo-pairs from other capture setups, for 'train <backend> --distil'",
         description="Stylize clips from other capture setups into every style with every candidate "
                     "backend; of the outputs judge panel 1 recognises as the target (and whose action its "
                     "content judge still reads as the input's), keep the most confident as a regression "

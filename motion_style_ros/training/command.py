@@ -6,7 +6,6 @@ the resuming command, the report line). Torch is imported only when a run starts
 
 from __future__ import annotations
 
-import dataclasses
 from typing import NamedTuple
 
 DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
@@ -107,9 +106,6 @@ def stylizer_run(args, module: str, unlabelled: str | None = None, check=None):
     fields, recipe = data_fields(args)
     if unlabelled and fields["unlabelled"]:
         raise MotionStyleError(f"--unlabelled: {unlabelled}; 'train recurrent' does")
-    if fields["distil"] and "w_distil" not in {f.name for f in dataclasses.fields(trainer.Config)}:
-        raise MotionStyleError(f"--distil: 'train {module}' has no distillation term; "
-                               "'train recurrent', 'most' and 'stgcn' have")
     if fields["distil"]:
         fields["distil"] = distil_pairs(args, trainer, fields)
     return trainer, out, fields, recipe

@@ -32,6 +32,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from motion_style_ros.errors import MotionStyleError
 from motion_style_ros.models.saae import (
     Critic,
     Decoder,
@@ -87,6 +88,12 @@ class Config(DataConfig):
     w_class: float = 1.0  # Model2: the style code's classifier
     w_foot: float = 0.5
     w_cycle: float = 0.0
+    # windows of the pseudo-pairs (DataConfig.distil) per iteration, each decoded from its own
+    # content code with its pair's style input (Model2: the code of a real window of that style)
+    # and held to the pair's target by the reconstruction terms, weighted w_distil (not in the
+    # paper; the plain SAAE has no style input to learn it from)
+    distil_batch: int = 8
+    w_distil: float = 1.0
     # reconstruction terms (training.losses.Losses)
     w_pos: float = 0.5
     w_vel: float = 1.0
@@ -122,6 +129,9 @@ class Trainer(ResumableTrainer):
         self.dir = checkpoints / f"{model_name(cfg.variant, cfg.style_dim)}{data_tag(cfg.data)}_{cfg.seed}"
         mean, std = self.normalised_losses()
         net = self.net = cfg.networks(data.styles)
+        if data.pairs is not None and net.variant == "saae":
+            raise MotionStyleError("--distil: the plain SAAE has no style input to distil into; "
+                                   "--variant model1 and model2 have")
         n = len(data.styles)
         torch.manual_seed(cfg.seed)
         self.enc, self.dec = Encoder(net, mean, std).to(self.device), Decoder(net, mean, std).to(self.device)
@@ -188,7 +198,8 @@ class Trainer(ResumableTrainer):
         rec = sum(terms.values())
         prior = F.softplus(-self.prior_critic(content)).mean()
         foot = self.losses.foot(views, x)
-        total = rec + cfg.w_prior * prior + cfg.w_foot * foot
+        distil = self.distil(rng)
+        total = rec + cfg.w_prior * prior + cfg.w_foot * foot + cfg.w_distil * distil
         zero = torch.zeros((), device=self.device)
         hidden = cls = cycle = zero
         if cfg.variant != "saae":
@@ -214,7 +225,23 @@ class Trainer(ResumableTrainer):
         for avg, live in ((self.enc_ema, self.enc), (self.dec_ema, self.dec), (self.classifier_ema, self.classifier)):
             update_average(avg, live, cfg.ema)
         return {"rec": rec.item(), "rot": terms["rot"].item(), "prior": prior.item(), "critic": critic.item(),
-                "hidden_style": hidden.item(), "cls": cls.item(), "foot": foot.item(), "cycle": cycle.item()}
+                "hidden_style": hidden.item(), "cls": cls.item(), "foot": foot.item(), "cycle": cycle.item(),
+                **({"distil": distil.item()} if self.data.pairs is not None else {})}
+
+    def distil(self, rng: np.random.Generator) -> torch.Tensor:
+        """The pseudo-pairs' term: each pair's input decoded from its content code with its style's
+        input (Model2: the code of a real window of the style, as the style's mean code at run
+        time), against its target (zero without pairs)."""
+        pairs, styles, targets = self.pair_windows(rng)
+        if not len(pairs):
+            return torch.zeros((), device=self.device)
+        code = None
+        if self.net.variant == "model2":
+            real = style_windows(self.data.splits["train"], self.cfg.window, styles.cpu().numpy(), rng)
+            code = self.enc_synced(real.to(self.device))[1]
+        out = self.dec_synced(self.enc_synced(pairs)[0], style_input(self.net, styles, code),
+                              positions(self.cfg.window, self.cfg.window, len(pairs)).to(self.device))
+        return sum(self.losses.reconstruction(self.losses.views(out), self.losses.views(targets)).values())
 
     @torch.no_grad()
     def validate(self, live: bool = False) -> dict[str, float]:
