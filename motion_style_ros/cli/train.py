@@ -8,6 +8,7 @@ import argparse
 
 from motion_style_ros.training.command import PAIRS_DEFAULTS
 
+
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "train", help="train models (needs torch)",

@@ -184,7 +184,7 @@ class Passes(nn.Module):
         return torch.cat([frames, views["pos"].flatten(-2), vel.flatten(-2), contacts], dim=-1)
 
     def forward(self, content: torch.Tensor, style: torch.Tensor, style2: torch.Tensor,
-                pairs: torch.Tensor, pair_styles: torch.Tensor) -> dict[str, torch.Tensor]:
+                pairs: torch.Tensor, pair_refs: torch.Tensor) -> dict[str, torch.Tensor]:
         m = self.model
         contacts = content[..., self.losses.contact_cols]
         enc_c, enc_s = m.encoder(content), m.encoder(style)
@@ -198,7 +198,7 @@ class Passes(nn.Module):
                 "cyc_content": m.transfer(enc_f, enc_c, fake_full),
                 "cyc_style": m.transfer(enc_s, enc_f, style),
                 "content_fake": enc_f[1], "content_in": enc_c[1],
-                "taught": m(pairs, pair_styles) if len(pairs) else pairs}
+                "taught": m(pairs, pair_refs) if len(pairs) else pairs}
 
 
 class Trainer(ResumableTrainer):
@@ -273,9 +273,8 @@ class Trainer(ResumableTrainer):
         x, content, target, s1, s2 = self.shard(x, content, target, s1, s2)
         # the pseudo-pairs, each restyled like a real window of its pair's style
         pairs, pair_styles, pair_targets = self.pair_windows(rng)
-        if len(pairs):
-            pair_styles = style_windows(self.data.splits["train"], cfg.window, pair_styles.cpu().numpy(),
-                                        rng).to(self.device)
+        pair_refs = pairs if not len(pairs) else style_windows(
+            self.data.splits["train"], cfg.window, pair_styles.cpu().numpy(), rng).to(self.device)
 
         # discriminator: real style windows of their style vs transfers to it
         self.dis.requires_grad_(True)
@@ -296,7 +295,7 @@ class Trainer(ResumableTrainer):
 
         # encoder, modulator, generator
         self.dis.requires_grad_(False)
-        out = self.passes(x, s1, s2, pairs, pair_styles)
+        out = self.passes(x, s1, s2, pairs, pair_refs)
         n_out = self.most.cfg.n_out
         adv = F.softplus(-self.dis(out["fake_full"]).gather(1, target[:, None])[:, 0]).mean()
         rec = self._rec(out["rec"], x[..., :n_out])
