@@ -121,11 +121,10 @@ def distil_pairs(args, trainer, fields: dict) -> str:
     from motion_style_ros.training.data import FPS
     from motion_style_ros.training.loop import CHECKPOINTS
 
+    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not os.path.isfile(fields["distil"]):
+        raise MotionStyleError("--distil CLIPS under torchrun: make the pairs first ('motion-style train "
+                               "pairs --clips CLIPS --out pairs.npz') and give the file")
     folder = trainer.Trainer.folder(CHECKPOINTS, args.seed, fields["data"])
-    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not (folder / "pairs.npz").is_file():
-        if not os.path.isfile(fields["distil"]):
-            raise MotionStyleError("--distil CLIPS under torchrun: make the pairs first ('motion-style train "
-                                   "pairs --clips CLIPS --out pairs.npz') and give the file")
     return pseudo_pairs.for_run(fields["distil"], folder, FPS, threads=args.threads)
 
 

@@ -113,6 +113,10 @@ class Losses(nn.Module):
             "root": w.w_root * ((out["root"] - real["root"]) / self.root_std).pow(2).mean(),
         }
 
+    def distance(self, out: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """The :meth:`reconstruction` terms between two ``[root | rot6d]`` windows, summed."""
+        return sum(self.reconstruction(self.views(out), self.views(target)).values())
+
     def foot(self, out: dict[str, torch.Tensor], x: torch.Tensor) -> torch.Tensor:
         """Squared velocity (train-std units) of the foot joints the input ``x`` (features) holds
         in contact, per frame 1.. (the first has no velocity)."""

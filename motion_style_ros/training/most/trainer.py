@@ -247,10 +247,6 @@ class Trainer(ResumableTrainer):
     def summary(self) -> dict:
         return {**super().summary(), "content_network": self.content_info}
 
-    def _rec(self, out: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """The shared reconstruction terms between two ``[root | rot6d]`` windows, summed."""
-        return sum(self.losses.reconstruction(self.losses.views(out), self.losses.views(target)).values())
-
     def physics(self, out: torch.Tensor, feet_of: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor,
                                                                           torch.Tensor]:
         """Velocity, acceleration and foot-contact terms of generated frames ``out`` (feet held in
@@ -298,14 +294,15 @@ class Trainer(ResumableTrainer):
         out = self.passes(x, s1, s2, pairs, pair_refs)
         n_out = self.most.cfg.n_out
         adv = F.softplus(-self.dis(out["fake_full"]).gather(1, target[:, None])[:, 0]).mean()
-        rec = self._rec(out["rec"], x[..., :n_out])
-        cyc_c = self._rec(out["cyc_content"], x[..., :n_out])
-        cyc_s = self._rec(out["cyc_style"], s1[..., :n_out])
-        dis = self._rec(out["fake"], out["twin"])
+        rec = self.losses.distance(out["rec"], x[..., :n_out])
+        cyc_c = self.losses.distance(out["cyc_content"], x[..., :n_out])
+        cyc_s = self.losses.distance(out["cyc_style"], s1[..., :n_out])
+        dis = self.losses.distance(out["fake"], out["twin"])
         vel, acc, foot = self.physics(out["fake"], x)
         foot = 0.5 * (foot + self.losses.foot(self.losses.views(out["cyc_content"]), x))
         kept = content_change(out["content_fake"], out["content_in"])
-        distil = self._rec(out["taught"], pair_targets) if len(pair_targets) else torch.zeros((), device=self.device)
+        distil = (self.losses.distance(out["taught"], pair_targets) if len(pair_targets)
+                  else torch.zeros((), device=self.device))
         classified = torch.zeros((), device=self.device)
         if self.content is not None:
             classified = F.cross_entropy(self.content(self.losses.views(out["fake"])["content"])[0], content)
@@ -346,7 +343,7 @@ class Trainer(ResumableTrainer):
         means = torch.stack([s_real[style == k].mean(0) for k in present])
         nearest = present[torch.cdist(s_fake, means).argmin(-1)]
         return {**val_scores(rec),
-                "val_disentangle": round(self._rec(fake, twin).item(), 5),
+                "val_disentangle": round(self.losses.distance(fake, twin).item(), 5),
                 "val_pose_change_m": round(moved.norm(dim=-1).mean().item(), 4),
                 "val_transfer_style_acc": round(float((nearest == target).float().mean()), 4)}
 

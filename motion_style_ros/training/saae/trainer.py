@@ -241,7 +241,7 @@ class Trainer(ResumableTrainer):
             code = self.enc_synced(real.to(self.device))[1]
         out = self.dec_synced(self.enc_synced(pairs)[0], style_input(self.net, styles, code),
                               positions(self.cfg.window, self.cfg.window, len(pairs)).to(self.device))
-        return sum(self.losses.reconstruction(self.losses.views(out), self.losses.views(targets)).values())
+        return self.losses.distance(out, targets)
 
     @torch.no_grad()
     def validate(self, live: bool = False) -> dict[str, float]:

@@ -275,8 +275,7 @@ class Trainer(ResumableTrainer):
             return torch.zeros((), device=self.device)
         z = torch.from_numpy(rng.standard_normal((len(pairs), self.cfg.latent_dim)).astype(np.float32))
         codes = self.mapping_synced(z.to(self.device), F.one_hot(styles, len(self.data.styles)).float())
-        taught = self.losses.views(self.gen_synced(pairs, codes))
-        return sum(self.losses.reconstruction(taught, self.losses.views(targets)).values())
+        return self.losses.distance(self.gen_synced(pairs, codes), targets)
 
     @torch.no_grad()
     def validate(self, model: Generator | None = None) -> dict[str, float]:
