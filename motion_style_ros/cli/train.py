@@ -42,9 +42,11 @@ def add_parser(subparsers):
         "pairs", help="pseudo-pairs from other capture setups, for 'train <backend> --distil'",
         description="Stylize clips from other capture setups into every style with every candidate "
                     "backend; of the outputs judge panel 1 recognises as the target (and whose action its "
-                    "content judge still reads as the input's), keep the most confident as a regression "
-                    "target. Panel 2 never looks. 'eval --unseen' leaves these clips out of a model "
-                    "trained on them.")
+                    "content judge still reads as the input's, and whose legs keep the input's posture as far as the "
+                    "style moves Bandai's performers), keep the most confident as a regression target. "
+                    "Panel 2 never looks. 'eval --unseen' leaves these clips out of a model trained on them. "
+                    "Each clip's pairs are kept in OUT.parts/ as it is done: the same command, stopped, goes "
+                    "on where it stopped.")
     pairs.add_argument("--clips", required=True, metavar="SPEC,SPEC",
                        help="cmu:SUBJECT, cmu:SUBJECT_TRIAL, a BVH file or a folder of them, any rig")
     pairs.add_argument("--candidates", default=PAIRS_DEFAULTS["candidates"],
@@ -198,11 +200,10 @@ def run_pairs(args) -> int:
         speeds = (0.0,)
     if any(not v > 0 for v in speeds):
         raise MotionStyleError(f"--speeds takes positive numbers (0.8,1.25), got {args.speeds}")
-    pairs = pseudo_pairs.make(tuple(c for c in args.clips.split(",") if c), candidates, styles, FPS, args.threads,
-                              speeds=speeds, mirror=args.mirror)
     out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    pseudo_pairs.save(pairs, out)
+    pairs = pseudo_pairs.make(tuple(c for c in args.clips.split(",") if c), candidates, styles, FPS, args.threads,
+                              speeds=speeds, mirror=args.mirror, parts=pseudo_pairs.parts_folder(out))
+    pseudo_pairs.save_made(pairs, out)
     print(f"{pairs.meta['kept']} of {pairs.meta['tried']} clip-style pairs kept "
           f"({', '.join(f'{m} {n}' for m, n in pairs.made_counts().items())}) -> {out}")
     return 0

@@ -92,10 +92,10 @@ def evaluate(stylize: Callable[[Motion, str], Motion], styles: Sequence[str],
             for stat in STATS:
                 key = f"{angle}_{stat}"
                 shift = float(np.mean([r[f"{key}_shift"] for r in mine]))
-                real = 0.0 if style == NEUTRAL else shifts.get(style, {}).get(key, 0.0)
+                real = allowed(style, key, shifts)
                 entry[f"{key}_shift"] = shift
                 entry[f"{key}_allowed"] = real
-                entry[f"{key}_ok"] = bool(_within(shift, real))
+                entry[f"{key}_ok"] = within(shift, real)
         ratios = np.array([r["foot_skating_ratio"] for r in mine], dtype=float)
         ratios = ratios[np.isfinite(ratios)]
         entry["foot_skating_ratio_median"] = float(np.median(ratios)) if len(ratios) else float("nan")
@@ -122,10 +122,24 @@ def format_table(name: str, report: dict) -> str:
     return "\n".join(lines)
 
 
-def _within(shift: float, real: float) -> bool:
-    """A shift is within a real style's shift ``real`` and :data:`SLACK_DEGREES` of slack: no
-    further from 0 than that style moves real performers, in either direction."""
-    return min(0.0, real) - SLACK_DEGREES <= shift <= max(0.0, real) + SLACK_DEGREES
+def allowed(style: str, key: str, shifts: dict[str, dict[str, float]]) -> float:
+    """How far ``style`` moves real performers' figure ``key`` from ``normal``'s (0 for ``normal``
+    and for a style ``shifts`` lacks)."""
+    return 0.0 if style == NEUTRAL else shifts.get(style, {}).get(key, 0.0)
+
+
+def within(shift: float, real: float, slack: float = SLACK_DEGREES) -> bool:
+    """A shift is within a real style's shift ``real`` and ``slack`` degrees: no further from 0
+    than that style moves real performers, in either direction."""
+    return bool(min(0.0, real) - slack <= shift <= max(0.0, real) + slack)
+
+
+def keeps(source: dict[str, float], output: Motion, style: str, shifts: dict[str, dict[str, float]],
+          slack: float) -> bool:
+    """Does ``output``, ``source`` (its input's :func:`posture`) into ``style``, keep every posture
+    figure within what the style allows (:func:`allowed`) and ``slack``?"""
+    after = posture(output)
+    return all(within(after[k] - source[k], allowed(style, k, shifts), slack) for k in source)
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -206,7 +206,8 @@ def with_pairs(data: Data, path: str) -> Data:
     styles = np.array([data.styles.index(s) for s in pairs.styles])
     clips = Clips([np.concatenate([x, y], axis=1) for x, y in zip(pairs.inputs, pairs.targets)], styles,
                   np.full(len(styles), -1))
-    record = {**{k: pairs.meta[k] for k in ("clips", "judges", "kept", "tried")}, "made_by": pairs.made_counts()}
+    record = {**{k: pairs.meta[k] for k in ("clips", "judges", "kept", "tried")}, "made_by": pairs.made_counts(),
+              "posture_slack": pairs.meta.get("posture_slack")}
     names = tuple(dict.fromkeys((*data.unlabelled_names, *pairs.clips)))
     return replace(data, pairs=clips, pairs_record=record, unlabelled_names=names)
 

@@ -3,10 +3,14 @@ every shipped backend, the best output kept as a plain regression target.
 
 Labelled Bandai takes never show a model a CMU performer in the style asked for, and adversarial
 terms on unlabelled clips only push towards it. Here, for each clip and style, the outputs of the
-candidate stylizers that judge panel 1 recognises as the target (among the model's styles) and whose
-action its content judge still reads as the input's are ranked by the target's probability, and the
-best one becomes the target of a supervised term (``training.recurrent``'s ``w_distil``). Only
-panel 1 looks here: panel 2 never chooses anything, so it can report on the result.
+candidate stylizers that judge panel 1 recognises as the target (among the model's styles), whose
+action its content judge still reads as the input's, and whose legs keep the input's posture as far
+as the style allows (knee and hip flexion within how far the style moves Bandai's train-take
+performers, :data:`POSTURE_SLACK` either way: the content judge cannot read a CMU bend or crouch,
+so a teacher that stands the performer up would otherwise be copied) are ranked by the target's
+probability, and the best one becomes the target of a supervised term (``w_distil``). Only panel 1
+and the train takes look here: panel 2 and the test takes never choose anything, so they can report
+on the result.
 
 Both sides of a pair are conditioned as a stream session conditions the input (the input's arm
 rolls, size and height, :func:`~motion_style_ros.training.unlabelled.conditioning`), at the
@@ -16,6 +20,7 @@ training rate, frame for frame.
 from __future__ import annotations
 
 import json
+import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,9 +33,11 @@ from motion_style_ros.core.motion import Motion
 from motion_style_ros.core.mirror import mirror as mirror_motion
 from motion_style_ros.core.resample import at_speed, resample
 from motion_style_ros.errors import MotionStyleError
+from motion_style_ros.evaluation import posture
 from motion_style_ros.evaluation.judges import Judge
 from motion_style_ros.evaluation.unseen import offered_columns
 from motion_style_ros.io import files
+from motion_style_ros.io.datasets import index_bandai, load_bandai
 from motion_style_ros.io.resources import rotation_stats
 from motion_style_ros.runtime import offline
 from motion_style_ros.training.command import PAIRS_DEFAULTS
@@ -42,6 +49,9 @@ PANEL = 1  # the judges that may guide training; panel 2 only reports
 # probability thin (0.2 at most), and whatever it names changes with any restyling. Its label must
 # stay the same only where it reads the input's action with at least this probability (a CMU walk: 0.43).
 CONFIDENT_CONTENT = 0.3
+# Degrees a target's knee and hip figures may sit beyond its style's real shift: twice the
+# acceptance's slack (evaluation.posture), since it judges one output where that judges a mean.
+POSTURE_SLACK = 10.0
 VERSION = 1
 
 
@@ -77,6 +87,11 @@ class Pairs:
     tried: list[dict]
     meta: dict
 
+    def extend(self, other: Pairs) -> None:
+        """Append ``other``'s pairs and tried rows (the meta stays)."""
+        for field in ("inputs", "targets", "styles", "clips", "made_by", "probability", "tried"):
+            getattr(self, field).extend(getattr(other, field))
+
     def made_counts(self) -> dict[str, int]:
         """How many kept pairs each candidate made (every candidate, in order)."""
         return {m: self.made_by.count(m) for m in self.meta["candidates"]}
@@ -108,40 +123,53 @@ def variants(motion: Motion, speeds: tuple[float, ...], mirror: bool) -> list[tu
 
 def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str], fps: float,
          threads: int = 1, progress: bool = True, stylizers: dict[str, Stylize] | None = None,
-         speeds: tuple[float, ...] = (), mirror: bool = False) -> Pairs:
+         speeds: tuple[float, ...] = (), mirror: bool = False, parts: Path | None = None) -> Pairs:
     """Every clip ``specs`` name (:func:`~motion_style_ros.training.unlabelled.sources`; also at
     ``speeds`` and mirrored, :func:`variants`) into every one of ``styles`` by every candidate, at
     ``fps``; the best recognised output of each kept. ``stylizers``: the candidates' stylizers by
-    name (default: their offline sessions)."""
+    name (default: their offline sessions). ``parts``: a folder that keeps each clip's pairs as it
+    is done, so that a stopped making goes on where it stopped (the caller removes it)."""
     stats = rotation_stats()
     style_judge, content_judge = Judge("style", threads, panel=PANEL), Judge("content", threads, panel=PANEL)
     unknown = [s for s in styles if s not in style_judge.labels]
     if unknown:
         raise MotionStyleError(f"the panel-{PANEL} style judge does not know {', '.join(unknown)}")
     (offered,) = offered_columns([style_judge], styles)
+    shifts = train_take_shifts()
     stylizers = stylizers or {str(c): offline.stylizer(c.backend, c.model, threads=threads) for c in candidates}
     clips = [(name, variant, moved) for spec in specs for name, motion in sources(spec, stats)
              for variant, moved in variants(motion, speeds, mirror)]
-    pairs = Pairs([], [], [], [], [], [], [], {})
-    for name, variant, motion in tqdm(clips, desc="pseudo-pairs", disable=not progress):
+    meta = {"version": VERSION, "clips": list(specs), "speeds": list(speeds), "mirror": mirror,
+            "candidates": list(stylizers), "styles": list(styles),
+            "fps": fps, "judges": [style_judge.model.path.name, content_judge.model.path.name],
+            "posture_slack": POSTURE_SLACK}
+
+    def one_clip(name: str, variant: str, motion: Motion) -> Pairs:
         low = resample(motion, fps)
         condition = conditioning(low, fps, stats)
         features = encode(condition(low))
         read = content_judge.judge([low])
         content = read.labels[0] if read.probabilities[0].max() >= CONFIDENT_CONTENT else None
+        stance = posture.posture(low)
+        pairs = Pairs([], [], [], [], [], [], [], meta)
         for style in styles:
-            scored = []
+            scored, bent = [], []
             for made_by, stylize in stylizers.items():
                 out = stylize(low, style)
                 if out.n_frames != low.n_frames:
                     raise MotionStyleError(f"{made_by} gave {out.n_frames} frames for {name}{variant}'s "
                                            f"{low.n_frames}: a target must match its input frame for frame")
                 p = _judged(style_judge, content_judge, offered, out, style, content)
-                if p is not None:
+                if p is None:
+                    continue
+                if posture.keeps(stance, out, style, shifts, POSTURE_SLACK):
                     scored.append((p, made_by, out))
+                else:
+                    bent.append(made_by)
             best = max(scored, key=lambda s: s[0], default=None)
-            pairs.tried.append({"clip": name + variant, "style": style, "recognised_by": sorted(m for _, m, _ in scored),
-                                "kept": best[1] if best else None})
+            pairs.tried.append({"clip": name + variant, "style": style,
+                                "recognised_by": sorted([m for _, m, _ in scored] + bent),
+                                "posture_refused": sorted(bent), "kept": best[1] if best else None})
             if best is None:
                 continue
             pairs.inputs.append(features.astype(np.float32))
@@ -150,11 +178,40 @@ def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str],
             pairs.clips.append(name)
             pairs.made_by.append(best[1])
             pairs.probability.append(best[0])
-    pairs.meta = {"version": VERSION, "clips": list(specs), "speeds": list(speeds), "mirror": mirror,
-                  "candidates": list(stylizers), "styles": list(styles),
-                  "fps": fps, "judges": [style_judge.model.path.name, content_judge.model.path.name],
-                  "kept": len(pairs.styles), "tried": len(pairs.tried)}
+        return pairs
+
+    pairs = Pairs([], [], [], [], [], [], [], {})
+    for index, (name, variant, motion) in enumerate(tqdm(clips, desc="pseudo-pairs", disable=not progress)):
+        part = None if parts is None else parts / f"{index:05d}.npz"
+        done = _part(part, meta)
+        if done is None:
+            done = one_clip(name, variant, motion)
+            if part is not None:
+                parts.mkdir(parents=True, exist_ok=True)
+                written = part.with_name("writing.npz")
+                save(done, written)
+                written.replace(part)
+        pairs.extend(done)
+    pairs.meta = {**meta, "kept": len(pairs.styles), "tried": len(pairs.tried)}
     return pairs
+
+
+def _part(path: Path | None, meta: dict) -> Pairs | None:
+    """One clip's pairs kept at ``path`` by a making with the same ``meta``; else None."""
+    if path is None or not path.is_file():
+        return None
+    try:
+        done = load(path)
+    except MotionStyleError:
+        return None
+    return done if done.meta == meta else None
+
+
+def train_take_shifts() -> dict[str, dict[str, float]]:
+    """How far each style moves the posture of Bandai dataset-2's train-take performers
+    (:func:`~motion_style_ros.evaluation.posture.style_shifts`; the acceptance uses the test takes)."""
+    return posture.style_shifts(load_bandai([i for i in index_bandai(datasets=(2,)) if i.split == "train"],
+                                            progress=False))
 
 
 def default_styles() -> list[str]:
@@ -169,8 +226,8 @@ def for_run(distil: str, folder: Path, fps: float, threads: int = 1, progress: b
             make_pairs: Callable[..., Pairs] | None = None) -> str:
     """The pairs file a training run distils from (its ``--distil``): the file itself where it names
     one; else clip specs, whose pairs are made once as ``train pairs --clips`` makes them by default
-    into the run's checkpoint ``folder`` (``pairs.npz``) and read again when the run resumes, so that
-    a distilled model's recipe is one resumable command. ``make_pairs``: :func:`make` (tests)."""
+    into the run's checkpoint ``folder`` (``pairs.npz``; a stopped making goes on where it stopped)
+    and read again when the run resumes, so that a distilled model's recipe is one resumable command. ``make_pairs``: :func:`make` (tests)."""
     if Path(distil).is_file():
         return distil
     if distil.endswith(".npz"):
@@ -178,14 +235,37 @@ def for_run(distil: str, folder: Path, fps: float, threads: int = 1, progress: b
                                "wrote, or clip specs such as cmu:07 to make them for this run)")
     specs = [s for s in distil.split(",") if s]
     path = folder / "pairs.npz"
-    if path.is_file() and load(path).meta["clips"] == specs:
+    if _made_for(path, specs):
         return str(path)
     candidates = [Candidate.parse(c) for c in PAIRS_DEFAULTS["candidates"].split(",")]
     pairs = (make_pairs or make)(tuple(specs), candidates, default_styles(), fps, threads, progress,
-                                 speeds=PAIRS_DEFAULTS["speeds"], mirror=PAIRS_DEFAULTS["mirror"])
-    folder.mkdir(parents=True, exist_ok=True)
-    save(pairs, path)
+                                 speeds=PAIRS_DEFAULTS["speeds"], mirror=PAIRS_DEFAULTS["mirror"],
+                                 parts=parts_folder(path))
+    save_made(pairs, path)
     return str(path)
+
+
+def parts_folder(path: Path) -> Path:
+    """Where the making of the pairs file ``path`` keeps each clip's pairs until it is written."""
+    return path.with_name(path.name + ".parts")
+
+
+def save_made(pairs: Pairs, path: Path) -> None:
+    """Write a making's pairs to ``path`` and remove its parts (:func:`parts_folder`)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save(pairs, path)
+    shutil.rmtree(parts_folder(path), ignore_errors=True)
+
+
+def _made_for(path: Path, specs: list[str]) -> bool:
+    """Were the pairs in ``path`` made from ``specs`` as this version makes them? Reads the meta
+    alone, not the arrays (a run's pairs are 100 MB and more)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"]))
+    except (OSError, ValueError, KeyError, EOFError):
+        return False
+    return (meta.get("version"), meta.get("clips"), meta.get("posture_slack")) == (VERSION, specs, POSTURE_SLACK)
 
 
 def save(pairs: Pairs, path: Path) -> None:
