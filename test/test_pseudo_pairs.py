@@ -31,6 +31,7 @@ from motion_style_ros.training.stgcn import trainer as stgcn_trainer  # noqa: E4
 from motion_style_ros.training.unlabelled import conditioned, conditioning, sources  # noqa: E402
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+SLACK = 10.0  # degrees of posture slack (train pairs --posture-slack)
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +64,7 @@ def pairs(walks):
                  "bent": lambda source, style: _knees_bent(source, 12.0),
                  "identity": lambda source, style: source}
     return pseudo_pairs.make(("cmu:07_01",), [], STYLES, 30.0, progress=False, stylizers=stylizers,
-                             speeds=(1.25,))
+                             speeds=(1.25,), posture_slack=SLACK)
 
 
 def test_conditioning_applies_the_inputs_rolls_size_and_height_to_its_output(datasets):
@@ -100,7 +101,7 @@ def test_a_target_is_kept_only_where_panel_1_recognises_its_style(pairs):
     # for the posture it loses, where the style allows none of it
     assert any("bent" in row["posture_refused"] for row in pairs.tried if row["style"] == "normal")
     assert ("normal", "bent") not in set(zip(pairs.styles, pairs.made_by))
-    assert pairs.meta["posture_slack"] == pseudo_pairs.POSTURE_SLACK
+    assert pairs.meta["posture_slack"] == SLACK
     # the identity restyles nothing: it can only be kept for the style panel 1 reads in the input
     assert len({s for s, m in zip(pairs.styles, pairs.made_by) if m == "identity"}) <= 1
     assert all(0.0 < p <= 1.0 for p in pairs.probability)
@@ -114,7 +115,7 @@ def test_a_bend_is_kept_only_as_far_as_the_style_bends_real_performers(walks):
     stance = posture.posture(source)
     crouch = _knees_bent(source, 30.0)
     assert posture.posture(crouch)["knee_mean"] == pytest.approx(stance["knee_mean"] + 30.0, abs=1.0)
-    slack = pseudo_pairs.POSTURE_SLACK
+    slack = SLACK
     assert posture.keeps(stance, source, "normal", {}, slack)
     assert not posture.keeps(stance, crouch, "normal", {}, slack)
     # a style that bends real performers' knees that far (and no further at the hips) allows it
@@ -173,11 +174,11 @@ def test_a_run_given_clips_makes_their_pairs_once_into_its_folder(pairs, tmp_pat
     it is, and a missing one is one line."""
     calls = []
 
-    def made(specs, candidates, styles, fps, threads, progress, speeds, mirror, parts):
-        assert parts == folder / "pairs.npz.parts"
+    def made(specs, candidates, styles, fps, threads, progress, speeds, mirror, parts, posture_slack):
+        assert parts == folder / "pairs.npz.parts" and posture_slack == PAIRS_DEFAULTS["posture_slack"]
         parts.mkdir(parents=True, exist_ok=True)  # what a making leaves until its file is written
         calls.append((specs, [str(c) for c in candidates], speeds, mirror))
-        return dataclasses.replace(pairs, meta={**pairs.meta, "clips": list(specs)})
+        return dataclasses.replace(pairs, meta={**pairs.meta, "clips": list(specs), "posture_slack": posture_slack})
 
     folder = tmp_path / "most_5"
     first = pseudo_pairs.for_run("cmu:07_01", folder, 30.0, progress=False, make_pairs=made)
@@ -187,11 +188,10 @@ def test_a_run_given_clips_makes_their_pairs_once_into_its_folder(pairs, tmp_pat
     assert pseudo_pairs.for_run("cmu:07_01", folder, 30.0, make_pairs=made) == first and len(calls) == 1
     pseudo_pairs.for_run("cmu:07_01,cmu:02_01", folder, 30.0, progress=False, make_pairs=made)
     assert len(calls) == 2 and pseudo_pairs.load(first).meta["clips"] == ["cmu:07_01", "cmu:02_01"]
-    # pairs made without the posture gate are made again
-    ungated = {k: v for k, v in pairs.meta.items() if k != "posture_slack"}
-    pseudo_pairs.save(dataclasses.replace(pairs, meta={**ungated, "clips": ["cmu:07_01"]}), folder / "pairs.npz")
+    # pairs made with a posture gate (not the default) are made again
+    pseudo_pairs.save(dataclasses.replace(pairs, meta={**pairs.meta, "clips": ["cmu:07_01"]}), folder / "pairs.npz")
     pseudo_pairs.for_run("cmu:07_01", folder, 30.0, progress=False, make_pairs=made)
-    assert len(calls) == 3 and pseudo_pairs.load(first).meta["posture_slack"] == pseudo_pairs.POSTURE_SLACK
+    assert len(calls) == 3 and pseudo_pairs.load(first).meta["posture_slack"] is None
     assert pseudo_pairs.for_run(first, tmp_path / "other", 30.0, make_pairs=made) == first and len(calls) == 3
     with pytest.raises(MotionStyleError, match="no pairs file .*nope.npz"):
         pseudo_pairs.for_run(str(tmp_path / "nope.npz"), folder, 30.0, make_pairs=made)
@@ -256,5 +256,7 @@ def test_bad_pairs_flags_are_one_line(capsys, tmp_path):
     assert "no pairs file" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--speeds", "-1", "--out", str(tmp_path / "p.npz")]) == 2
     assert "--speeds takes positive numbers" in capsys.readouterr().err
+    assert main(["train", "pairs", "--clips", "cmu:07", "--posture-slack", "-5", "--out", str(tmp_path / "p.npz")]) == 2
+    assert "--posture-slack takes degrees" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--candidates", "nope", "--out", str(tmp_path / "p.npz")]) == 2
     assert "nope" in capsys.readouterr().err

@@ -42,8 +42,7 @@ def add_parser(subparsers):
         "pairs", help="pseudo-pairs from other capture setups, for 'train <backend> --distil'",
         description="Stylize clips from other capture setups into every style with every candidate "
                     "backend; of the outputs judge panel 1 recognises as the target (and whose action its "
-                    "content judge still reads as the input's, and whose legs keep the input's posture as far as the "
-                    "style moves Bandai's performers), keep the most confident as a regression target. "
+                    "content judge still reads as the input's), keep the most confident as a regression target. "
                     "Panel 2 never looks. 'eval --unseen' leaves these clips out of a model trained on them. "
                     "Each clip's pairs are kept in OUT.parts/ as it is done: the same command, stopped, goes "
                     "on where it stopped.")
@@ -59,6 +58,9 @@ def add_parser(subparsers):
                        help=f"also every clip played at these speeds; '' for none (default: {speeds})")
     pairs.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=PAIRS_DEFAULTS["mirror"],
                        help="also every clip (and speed copy) mirrored left-right (default: on)")
+    pairs.add_argument("--posture-slack", type=float, default=PAIRS_DEFAULTS["posture_slack"], metavar="DEG",
+                       help="also require a target's knee and hip figures within how far its style moves "
+                            "Bandai's train-take performers, DEG either way (default: off)")
     pairs.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     pairs.add_argument("--out", required=True, help="the pairs file to write (.npz)")
     pairs.set_defaults(func=run_pairs)
@@ -200,9 +202,12 @@ def run_pairs(args) -> int:
         speeds = (0.0,)
     if any(not v > 0 for v in speeds):
         raise MotionStyleError(f"--speeds takes positive numbers (0.8,1.25), got {args.speeds}")
+    if args.posture_slack is not None and not args.posture_slack >= 0:
+        raise MotionStyleError(f"--posture-slack takes degrees, 0 or more (e.g. 10), got {args.posture_slack}")
     out = Path(args.out)
     pairs = pseudo_pairs.make(tuple(c for c in args.clips.split(",") if c), candidates, styles, FPS, args.threads,
-                              speeds=speeds, mirror=args.mirror, parts=pseudo_pairs.parts_folder(out))
+                              speeds=speeds, mirror=args.mirror, parts=pseudo_pairs.parts_folder(out),
+                              posture_slack=args.posture_slack)
     pseudo_pairs.save_made(pairs, out)
     print(f"{pairs.meta['kept']} of {pairs.meta['tried']} clip-style pairs kept "
           f"({', '.join(f'{m} {n}' for m, n in pairs.made_counts().items())}) -> {out}")

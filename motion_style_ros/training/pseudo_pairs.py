@@ -3,14 +3,14 @@ every shipped backend, the best output kept as a plain regression target.
 
 Labelled Bandai takes never show a model a CMU performer in the style asked for, and adversarial
 terms on unlabelled clips only push towards it. Here, for each clip and style, the outputs of the
-candidate stylizers that judge panel 1 recognises as the target (among the model's styles), whose
-action its content judge still reads as the input's, and whose legs keep the input's posture as far
-as the style allows (knee and hip flexion within how far the style moves Bandai's train-take
-performers, :data:`POSTURE_SLACK` either way: the content judge cannot read a CMU bend or crouch,
-so a teacher that stands the performer up would otherwise be copied) are ranked by the target's
-probability, and the best one becomes the target of a supervised term (``w_distil``). Only panel 1
-and the train takes look here: panel 2 and the test takes never choose anything, so they can report
-on the result.
+candidate stylizers that judge panel 1 recognises as the target (among the model's styles) and whose
+action its content judge still reads as the input's are ranked by the target's probability, and the
+best one becomes the target of a supervised term (``w_distil``). With a posture slack, a candidate
+must also keep the input's knee and hip figures within how far the style moves Bandai's train-take
+performers, that many degrees either way (the content judge cannot read a CMU bend or crouch; off by
+default: at 10 degrees it kept the bends at the cost of most of the style on other setups, see
+docs/models.md). Only panel 1 and the train takes look here: panel 2 and the test takes never
+choose anything, so they can report on the result.
 
 Both sides of a pair are conditioned as a stream session conditions the input (the input's arm
 rolls, size and height, :func:`~motion_style_ros.training.unlabelled.conditioning`), at the
@@ -49,9 +49,6 @@ PANEL = 1  # the judges that may guide training; panel 2 only reports
 # probability thin (0.2 at most), and whatever it names changes with any restyling. Its label must
 # stay the same only where it reads the input's action with at least this probability (a CMU walk: 0.43).
 CONFIDENT_CONTENT = 0.3
-# Degrees a target's knee and hip figures may sit beyond its style's real shift: twice the
-# acceptance's slack (evaluation.posture), since it judges one output where that judges a mean.
-POSTURE_SLACK = 10.0
 VERSION = 1
 
 
@@ -123,26 +120,29 @@ def variants(motion: Motion, speeds: tuple[float, ...], mirror: bool) -> list[tu
 
 def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str], fps: float,
          threads: int = 1, progress: bool = True, stylizers: dict[str, Stylize] | None = None,
-         speeds: tuple[float, ...] = (), mirror: bool = False, parts: Path | None = None) -> Pairs:
+         speeds: tuple[float, ...] = (), mirror: bool = False, parts: Path | None = None,
+         posture_slack: float | None = None) -> Pairs:
     """Every clip ``specs`` name (:func:`~motion_style_ros.training.unlabelled.sources`; also at
     ``speeds`` and mirrored, :func:`variants`) into every one of ``styles`` by every candidate, at
     ``fps``; the best recognised output of each kept. ``stylizers``: the candidates' stylizers by
     name (default: their offline sessions). ``parts``: a folder that keeps each clip's pairs as it
-    is done, so that a stopped making goes on where it stopped (the caller removes it)."""
+    is done, so that a stopped making goes on where it stopped (the caller removes it).
+    ``posture_slack``: degrees a target's knee and hip figures may sit beyond its style's real shift
+    (None: no posture gate)."""
     stats = rotation_stats()
     style_judge, content_judge = Judge("style", threads, panel=PANEL), Judge("content", threads, panel=PANEL)
     unknown = [s for s in styles if s not in style_judge.labels]
     if unknown:
         raise MotionStyleError(f"the panel-{PANEL} style judge does not know {', '.join(unknown)}")
     (offered,) = offered_columns([style_judge], styles)
-    shifts = train_take_shifts()
+    shifts = train_take_shifts() if posture_slack is not None else {}
     stylizers = stylizers or {str(c): offline.stylizer(c.backend, c.model, threads=threads) for c in candidates}
     clips = [(name, variant, moved) for spec in specs for name, motion in sources(spec, stats)
              for variant, moved in variants(motion, speeds, mirror)]
     meta = {"version": VERSION, "clips": list(specs), "speeds": list(speeds), "mirror": mirror,
             "candidates": list(stylizers), "styles": list(styles),
             "fps": fps, "judges": [style_judge.model.path.name, content_judge.model.path.name],
-            "posture_slack": POSTURE_SLACK}
+            "posture_slack": posture_slack}
 
     def one_clip(name: str, variant: str, motion: Motion) -> Pairs:
         low = resample(motion, fps)
@@ -162,7 +162,7 @@ def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str],
                 p = _judged(style_judge, content_judge, offered, out, style, content)
                 if p is None:
                     continue
-                if posture.keeps(stance, out, style, shifts, POSTURE_SLACK):
+                if posture_slack is None or posture.keeps(stance, out, style, shifts, posture_slack):
                     scored.append((p, made_by, out))
                 else:
                     bent.append(made_by)
@@ -240,7 +240,7 @@ def for_run(distil: str, folder: Path, fps: float, threads: int = 1, progress: b
     candidates = [Candidate.parse(c) for c in PAIRS_DEFAULTS["candidates"].split(",")]
     pairs = (make_pairs or make)(tuple(specs), candidates, default_styles(), fps, threads, progress,
                                  speeds=PAIRS_DEFAULTS["speeds"], mirror=PAIRS_DEFAULTS["mirror"],
-                                 parts=parts_folder(path))
+                                 parts=parts_folder(path), posture_slack=PAIRS_DEFAULTS["posture_slack"])
     save_made(pairs, path)
     return str(path)
 
@@ -265,7 +265,8 @@ def _made_for(path: Path, specs: list[str]) -> bool:
             meta = json.loads(str(z["meta"]))
     except (OSError, ValueError, KeyError, EOFError):
         return False
-    return (meta.get("version"), meta.get("clips"), meta.get("posture_slack")) == (VERSION, specs, POSTURE_SLACK)
+    return ((meta.get("version"), meta.get("clips"), meta.get("posture_slack"))
+            == (VERSION, specs, PAIRS_DEFAULTS["posture_slack"]))
 
 
 def save(pairs: Pairs, path: Path) -> None:
