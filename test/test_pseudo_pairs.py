@@ -108,6 +108,7 @@ def test_a_target_is_kept_only_where_panel_1_recognises_its_style(pairs):
     for x, y in zip(pairs.inputs, pairs.targets):
         assert x.shape[0] == y.shape[0] and y.shape[1] == FRAME and np.isfinite(y).all()
     assert set(pairs.clips) == {"cmu 07_01"} and pairs.meta["judges"] == ["judge_style.onnx", "judge_content.onnx"]
+    assert pairs.meta["sources"] == ["cmu 07_01"]  # every clip looked at, kept or not
 
 
 def test_a_bend_is_kept_only_as_far_as_the_style_bends_real_performers(walks):
@@ -148,7 +149,8 @@ def test_the_file_round_trips_and_a_bad_one_is_one_line(pairs, tmp_path):
     (saae_trainer, {"variant": "model1"})], ids=["recurrent", "most", "stgcn", "saae_model2", "saae_model1"])
 def test_a_step_is_held_to_the_targets_and_the_card_names_the_clips(datasets, pairs, tmp_path, module, sized):
     path = tmp_path / "pairs.npz"
-    pseudo_pairs.save(pairs, path)
+    # a second clip was looked at and none of its pairs kept: the card names it all the same
+    pseudo_pairs.save(dataclasses.replace(pairs, meta={**pairs.meta, "sources": ["cmu 07_01", "cmu 07_02"]}), path)
     labelled = training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
     cfg = module.tiny_config(distil=str(path), **sized)
     data = training_data.with_pairs(labelled, cfg.distil)
@@ -163,7 +165,7 @@ def test_a_step_is_held_to_the_targets_and_the_card_names_the_clips(datasets, pa
     assert any(not torch.equal(a, b) for a, b in zip(runs["with"].model.parameters(),
                                                       runs["without"].model.parameters()))
     record = card_record(runs["with"], data, 0.0, "", None)
-    assert record["clips"]["unlabelled"] == ["cmu 07_01"]
+    assert record["clips"]["unlabelled"] == ["cmu 07_01", "cmu 07_02"]
     assert record["clips"]["pairs"]["kept"] == len(pairs.styles) and "distilled" in record
     assert CMU_ACKNOWLEDGEMENT in licence_fields({**record, "config": {}})["attribution"]
 
@@ -234,7 +236,8 @@ def test_a_stopped_making_goes_on_where_it_stopped(tmp_path):
 
 def test_the_plain_saae_has_no_style_input_to_distil_into(datasets, pairs, tmp_path):
     path = tmp_path / "pairs.npz"
-    pseudo_pairs.save(pairs, path)
+    # a second clip was looked at and none of its pairs kept: the card names it all the same
+    pseudo_pairs.save(dataclasses.replace(pairs, meta={**pairs.meta, "sources": ["cmu 07_01", "cmu 07_02"]}), path)
     labelled = training_data.load_data((2,), progress=False, root=datasets, takes_per_cell=1)
     data = training_data.with_pairs(labelled, str(path))
     with pytest.raises(MotionStyleError, match="plain SAAE has no style input.*model1 and model2 have"):

@@ -208,7 +208,8 @@ def with_pairs(data: Data, path: str) -> Data:
                   np.full(len(styles), -1))
     record = {**{k: pairs.meta[k] for k in ("clips", "judges", "kept", "tried")}, "made_by": pairs.made_counts(),
               "posture_slack": pairs.meta.get("posture_slack")}
-    names = tuple(dict.fromkeys((*data.unlabelled_names, *pairs.clips)))
+    # every clip the pairs were made from, kept or not: panel 1 looked at each ('eval --unseen' leaves them out)
+    names = tuple(dict.fromkeys((*data.unlabelled_names, *pairs.meta.get("sources", pairs.clips))))
     return replace(data, pairs=clips, pairs_record=record, unlabelled_names=names)
 
 

@@ -142,7 +142,7 @@ def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str],
     meta = {"version": VERSION, "clips": list(specs), "speeds": list(speeds), "mirror": mirror,
             "candidates": list(stylizers), "styles": list(styles),
             "fps": fps, "judges": [style_judge.model.path.name, content_judge.model.path.name],
-            "posture_slack": posture_slack}
+            "posture_slack": posture_slack, "sources": list(dict.fromkeys(name for name, _, _ in clips))}
 
     def one_clip(name: str, variant: str, motion: Motion) -> Pairs:
         low = resample(motion, fps)
