@@ -128,7 +128,13 @@ def test_ros2_launch_managed_then_ros2_lifecycle_set_through_every_transition(ro
         return ros_cli.ros2_graph("lifecycle", *args, daemon=True, timeout=timeout)
 
     def state():
-        return lifecycle("get", "/demo/stylizer").stdout.split()[0]
+        """The node's state; "" if the CLI has not found the node within 30 s (discovery on a busy machine)."""
+        deadline = time.monotonic() + 30.0
+        while True:
+            words = lifecycle("get", "/demo/stylizer").stdout.split()
+            if words or time.monotonic() > deadline:
+                return words[0] if words else ""
+            time.sleep(1.0)
 
     def transition(name):
         """``ros2 lifecycle set``, the node's answer checked. Fast DDS can drop that answer on a
