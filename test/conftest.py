@@ -2,10 +2,17 @@
 test modules need it."""
 
 import os
+import signal
 import subprocess
 from pathlib import Path
 
 import pytest
+
+# A suite started in the background of a shell without job control (`make test &`) inherits Ctrl-C
+# ignored, and so would every node and `ros2 launch` it starts: the tests that press Ctrl-C on them
+# would wait for nothing. Python's own handler here makes the children start with the default.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # launch_testing files (test/launch/test_*.launch.py) run with `launch_test`, not as pytest modules:
 # test_launch.py runs them so.
