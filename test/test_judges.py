@@ -18,7 +18,8 @@ from motion_style_ros.runtime.onnx_model import models_dir
 
 KINDS = ("style", "content")
 PANELS = (1, 2)
-JUDGES = [(kind, panel) for panel in PANELS for kind in KINDS]
+# panel 3 has a style judge only: it chooses pseudo-pair targets beside panel 1's
+JUDGES = [(kind, panel) for panel in PANELS for kind in KINDS] + [("style", 3)]
 
 
 @pytest.fixture(scope="module")
@@ -53,6 +54,15 @@ def test_the_two_panels_are_built_differently_and_the_second_never_saw_val_takes
         assert not second["config"]["select"]
         assert all(h["val_accuracy"] is None for h in second["history"])
         assert second["selected_epoch"] == second["config"]["epochs"]
+
+
+def test_the_third_panel_sees_motion_but_not_posture_and_differs_from_both(all_judges):
+    third = all_judges["style", 3].card["training"]["config"]
+    assert set(third["inputs"]) == {"root", "vel"}  # no joint positions, no contacts
+    for panel in PANELS:
+        other = all_judges["style", panel].card["training"]["config"]
+        assert third["seed"] != other["seed"] and set(third["inputs"]) < set(other["inputs"])
+    assert third["select"]  # it guides choices, as panel 1 does; panel 2 never does
 
 
 def test_shipped_judges_are_small_and_carry_their_cards(all_judges, datasets):

@@ -111,6 +111,21 @@ def test_a_target_is_kept_only_where_panel_1_recognises_its_style(pairs):
     assert pairs.meta["sources"] == ["cmu 07_01"]  # every clip looked at, kept or not
 
 
+def test_an_agreeing_judge_must_recognise_a_target_too_and_panel_2_may_not(walks, tmp_path):
+    stylizers = {"real": lambda source, style: _frames_of(walks[style], source),
+                 "identity": lambda source, style: source}
+    alone = pseudo_pairs.make(("cmu:07_01",), [], STYLES, 30.0, progress=False, stylizers=stylizers)
+    # panel 1's own style judge again: it agrees with itself, so the same targets are kept
+    twice = pseudo_pairs.make(("cmu:07_01",), [], STYLES, 30.0, progress=False, stylizers=stylizers,
+                              agree=("judge_style.onnx",))
+    assert twice.made_by == alone.made_by and np.allclose(twice.probability, alone.probability)
+    assert twice.meta["judges"] == ["judge_style.onnx", "judge_style.onnx", "judge_content.onnx"]
+    with pytest.raises(MotionStyleError, match="panel 2's: it reports") as err:
+        pseudo_pairs.make(("cmu:07_01",), [], STYLES, 30.0, progress=False, stylizers=stylizers,
+                          agree=("judge2_style.onnx",))
+    assert "\n" not in str(err.value)
+
+
 def test_a_bend_is_kept_only_as_far_as_the_style_bends_real_performers(walks):
     source = walks["normal"]
     stance = posture.posture(source)
@@ -176,8 +191,9 @@ def test_a_run_given_clips_makes_their_pairs_once_into_its_folder(pairs, tmp_pat
     it is, and a missing one is one line."""
     calls = []
 
-    def made(specs, candidates, styles, fps, threads, progress, speeds, mirror, parts, posture_slack):
+    def made(specs, candidates, styles, fps, threads, progress, speeds, mirror, parts, posture_slack, agree):
         assert parts == folder / "pairs.npz.parts" and posture_slack == PAIRS_DEFAULTS["posture_slack"]
+        assert agree == PAIRS_DEFAULTS["agree"]
         parts.mkdir(parents=True, exist_ok=True)  # what a making leaves until its file is written
         calls.append((specs, [str(c) for c in candidates], speeds, mirror))
         return dataclasses.replace(pairs, meta={**pairs.meta, "clips": list(specs), "posture_slack": posture_slack})

@@ -27,8 +27,10 @@ def add_parser(subparsers):
     )
     judges.add_argument("--kind", choices=("style", "content", "both"), default="both",
                         help="which judge to train (default: both)")
-    judges.add_argument("--panel", choices=("1", "2", "both"), default="both",
-                        help="which panel to train (default: both)")
+    judges.add_argument("--panel", choices=("1", "2", "3", "both"), default="both",
+                        help="which panel to train; both: 1 and 2, the evaluation panels; 3 (judge3_<kind>, "
+                             "a CNN on velocities, best val epoch) may guide pseudo-pair choices beside "
+                             "panel 1 (default: both)")
     judges.add_argument("--epochs", type=int, default=None,
                         help="training epochs (default: the panel's, 15 and 8)")
     judges.add_argument("--seed", type=int, default=None, help="random seed (default: the panel's, 0 and 1)")
@@ -61,6 +63,10 @@ def add_parser(subparsers):
     pairs.add_argument("--posture-slack", type=float, default=PAIRS_DEFAULTS["posture_slack"], metavar="DEG",
                        help="also require a target's knee and hip figures within how far its style moves "
                             "Bandai's train-take performers, DEG either way (default: off)")
+    pairs.add_argument("--agree", default=",".join(PAIRS_DEFAULTS["agree"]), metavar="JUDGE,JUDGE",
+                       help="more style judges (ONNX files or names in models/, such as panel 3's "
+                            "judge3_style.onnx) that must recognise a target beside panel 1's; a target is "
+                            "then ranked by their mean probability (default: none)")
     pairs.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     pairs.add_argument("--out", required=True, help="the pairs file to write (.npz)")
     pairs.set_defaults(func=run_pairs)
@@ -177,8 +183,7 @@ def run_judges(args) -> int:
             clips = judges.encode_clips(not hardware.rank(), changes["data"])
         for panel in (1, 2) if args.panel == "both" else (int(args.panel),):
             for kind in KINDS if args.kind == "both" else (args.kind,):
-                cfg = (judges.Config(kind=kind, **changes) if panel == 1
-                       else judges.second_panel(kind, **changes))
+                cfg = judges.PANELS[panel](kind, **changes)
                 _report_judge(judges.train(cfg, out, clips, threads=args.threads, device=args.device,
                                            licence=args.licence), out)
     return 0
@@ -207,7 +212,8 @@ def run_pairs(args) -> int:
     out = Path(args.out)
     pairs = pseudo_pairs.make(tuple(c for c in args.clips.split(",") if c), candidates, styles, FPS, args.threads,
                               speeds=speeds, mirror=args.mirror, parts=pseudo_pairs.parts_folder(out),
-                              posture_slack=args.posture_slack)
+                              posture_slack=args.posture_slack,
+                              agree=tuple(j for j in args.agree.split(",") if j))
     pseudo_pairs.save_made(pairs, out)
     print(f"{pairs.meta['kept']} of {pairs.meta['tried']} clip-style pairs kept "
           f"({', '.join(f'{m} {n}' for m, n in pairs.made_counts().items())}) -> {out}")

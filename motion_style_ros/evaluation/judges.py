@@ -28,8 +28,8 @@ KINDS = ("style", "content")
 
 
 def judge_file(kind: str, panel: int = 1) -> str:
-    """The shipped judge of ``kind`` on ``panel`` 1 (may guide training choices) or 2 (reports only;
-    see :mod:`motion_style_ros.models.judge`)."""
+    """The shipped judge of ``kind`` on ``panel`` 1 or 3 (may guide training choices) or 2 (reports
+    only; see :mod:`motion_style_ros.models.judge`)."""
     return f"judge_{kind}.onnx" if panel == 1 else f"judge{panel}_{kind}.onnx"
 
 

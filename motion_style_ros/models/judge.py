@@ -4,7 +4,9 @@ Two panels, built differently so that one cannot share the other's blind spots: 
 (:class:`Judge`, a temporal CNN on root motion, joint positions, velocities and foot contacts) is
 what training runs may be compared and selected with; the second (style: :class:`RecurrentJudge`, a
 bidirectional GRU; content: a wider CNN; both on root motion, joint positions and velocities,
-another seed, no epoch selection) only ever reports.
+another seed, no epoch selection) only ever reports. A third style judge (a :class:`Judge` on root
+motion and joint velocities only) may guide choices beside the first: pseudo-pair targets must
+satisfy both.
 
 They are evaluation instruments, trained on real clips only; a stylizer must never be trained
 against them (it would learn to fool the judge, and the judge would stop measuring anything).

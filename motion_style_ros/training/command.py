@@ -13,7 +13,7 @@ DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles"
 # what 'train pairs' and a run's '--distil CLIPS' make (training.pseudo_pairs): every shipped model
 # a candidate; every clip also at two speeds, and each of those mirrored; no posture gate
 PAIRS_DEFAULTS = {"candidates": "recurrent,stgcn,most,saae:saae_model1.onnx,saae", "speeds": (0.8, 1.25),
-                  "mirror": True, "posture_slack": None}
+                  "mirror": True, "posture_slack": None, "agree": ()}
 
 
 class TrainCommand(NamedTuple):

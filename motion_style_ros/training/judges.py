@@ -6,7 +6,8 @@ takes, and then shipped frozen in ``models/``. No stylizer may use them as a tra
 are two panels (see :mod:`motion_style_ros.models.judge`): the first (``judge_<kind>``) picks its
 best epoch on the val takes and is what stylizer runs may be compared and selected with; the
 second (``judge2_<kind>``) is another architecture on fewer features and another seed, keeps its
-last epoch, and only ever reports.
+last epoch, and only ever reports. A third panel (``judge3_style``, :func:`third_panel`) may guide
+choices beside the first.
 """
 
 from __future__ import annotations
@@ -72,6 +73,18 @@ def second_panel(kind: str, **changes) -> Config:
     preset = dict(panel=2, architecture="gru" if gru else "cnn", width=64 if gru else 96,
                   inputs=("root", "pos", "vel"), select=False, seed=1, epochs=8, crop_frames=(45, 150))
     return Config(kind=kind, **{**preset, **changes})
+
+
+def third_panel(kind: str, **changes) -> Config:
+    """The third panel's judge of ``kind``: a CNN on root motion and joint velocities only, seed 2,
+    best val epoch. It sees how a body moves but not how it stands (no joint positions, no
+    contacts), so a pseudo-pair it agrees on carries the style in the motion, not in a Bandai
+    performer's posture. It guides training choices beside panel 1 and never reports."""
+    preset = dict(panel=3, inputs=("root", "vel"), seed=2, width=96, crop_frames=(60, 150))
+    return Config(kind=kind, **{**preset, **changes})
+
+
+PANELS = {1: Config, 2: second_panel, 3: third_panel}
 
 
 @dataclass

@@ -9,8 +9,10 @@ best one becomes the target of a supervised term (``w_distil``). With a posture 
 must also keep the input's knee and hip figures within how far the style moves Bandai's train-take
 performers, that many degrees either way (the content judge cannot read a CMU bend or crouch; off by
 default: at 10 degrees it kept the bends at the cost of most of the style on other setups, see
-docs/models.md). Only panel 1 and the train takes look here: panel 2 and the test takes never
-choose anything, so they can report on the result.
+docs/models.md). Other style judges may be asked to agree (``agree``: panel 3's, which sees how a
+body moves but not how it stands), so that a target carries the style for more than one network.
+Only panels 1 and 3 and the train takes look here: panel 2 and the test takes never choose
+anything, so they can report on the result.
 
 Both sides of a pair are conditioned as a stream session conditions the input (the input's arm
 rolls, size and height, :func:`~motion_style_ros.training.unlabelled.conditioning`), at the
@@ -97,18 +99,22 @@ class Pairs:
 Stylize = Callable[[Motion, str], Motion]
 
 
-def _judged(style_judge: Judge, content_judge: Judge, offered: list[int], motion: Motion, style: str,
-            content: str | None) -> float | None:
-    """The target's panel-1 probability of ``motion`` where the style judge picks ``style`` among the
-    ``offered`` columns and the content judge still reads ``content`` (None: any); else None."""
+def _judged(style_judges: list[Judge], content_judge: Judge, offered: list[list[int]], motion: Motion,
+            style: str, content: str | None) -> float | None:
+    """The target's mean probability over ``style_judges`` where every one of them picks ``style``
+    among its ``offered`` columns and the content judge still reads ``content`` (None: any); else None."""
     if not (np.isfinite(motion.rotations).all() and np.isfinite(motion.positions).all()):
         return None
-    p = style_judge.judge([motion]).probabilities[0]
-    column = style_judge.labels.index(style)
-    if offered[int(np.argmax(p[offered]))] != column or (
-            content is not None and content_judge.judge([motion]).labels[0] != content):
+    target = []
+    for judge, columns in zip(style_judges, offered):
+        p = judge.judge([motion]).probabilities[0]
+        column = judge.labels.index(style)
+        if columns[int(np.argmax(p[columns]))] != column:
+            return None
+        target.append(float(p[column]))
+    if content is not None and content_judge.judge([motion]).labels[0] != content:
         return None
-    return float(p[column])
+    return float(np.mean(target))
 
 
 def variants(motion: Motion, speeds: tuple[float, ...], mirror: bool) -> list[tuple[str, Motion]]:
@@ -121,27 +127,34 @@ def variants(motion: Motion, speeds: tuple[float, ...], mirror: bool) -> list[tu
 def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str], fps: float,
          threads: int = 1, progress: bool = True, stylizers: dict[str, Stylize] | None = None,
          speeds: tuple[float, ...] = (), mirror: bool = False, parts: Path | None = None,
-         posture_slack: float | None = None) -> Pairs:
+         posture_slack: float | None = None, agree: tuple[str, ...] = ()) -> Pairs:
     """Every clip ``specs`` name (:func:`~motion_style_ros.training.unlabelled.sources`; also at
     ``speeds`` and mirrored, :func:`variants`) into every one of ``styles`` by every candidate, at
     ``fps``; the best recognised output of each kept. ``stylizers``: the candidates' stylizers by
     name (default: their offline sessions). ``parts``: a folder that keeps each clip's pairs as it
     is done, so that a stopped making goes on where it stopped (the caller removes it).
     ``posture_slack``: degrees a target's knee and hip figures may sit beyond its style's real shift
-    (None: no posture gate)."""
+    (None: no posture gate). ``agree``: more style judges (files, such as panel 3's
+    ``judge3_style.onnx``; never panel 2's) that must recognise a target too; a target is then
+    ranked by the mean of its probabilities."""
     stats = rotation_stats()
-    style_judge, content_judge = Judge("style", threads, panel=PANEL), Judge("content", threads, panel=PANEL)
-    unknown = [s for s in styles if s not in style_judge.labels]
-    if unknown:
-        raise MotionStyleError(f"the panel-{PANEL} style judge does not know {', '.join(unknown)}")
-    (offered,) = offered_columns([style_judge], styles)
+    style_judges = [Judge("style", threads, panel=PANEL), *(Judge(path, threads) for path in agree)]
+    content_judge = Judge("content", threads, panel=PANEL)
+    for judge in style_judges:
+        if judge.card.get("panel") == 2:
+            raise MotionStyleError(f"{judge.model.path.name} is panel 2's: it reports on the pairs' "
+                                   "models, so it may not choose their targets")
+        unknown = [s for s in styles if s not in judge.labels]
+        if unknown:
+            raise MotionStyleError(f"{judge.model.path.name} does not know {', '.join(unknown)}")
+    offered = offered_columns(style_judges, styles)
     shifts = train_take_shifts() if posture_slack is not None else {}
     stylizers = stylizers or {str(c): offline.stylizer(c.backend, c.model, threads=threads) for c in candidates}
     clips = [(name, variant, moved) for spec in specs for name, motion in sources(spec, stats)
              for variant, moved in variants(motion, speeds, mirror)]
     meta = {"version": VERSION, "clips": list(specs), "speeds": list(speeds), "mirror": mirror,
             "candidates": list(stylizers), "styles": list(styles),
-            "fps": fps, "judges": [style_judge.model.path.name, content_judge.model.path.name],
+            "fps": fps, "judges": [j.model.path.name for j in (*style_judges, content_judge)],
             "posture_slack": posture_slack, "sources": list(dict.fromkeys(name for name, _, _ in clips))}
 
     def one_clip(name: str, variant: str, motion: Motion) -> Pairs:
@@ -159,7 +172,7 @@ def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str],
                 if out.n_frames != low.n_frames:
                     raise MotionStyleError(f"{made_by} gave {out.n_frames} frames for {name}{variant}'s "
                                            f"{low.n_frames}: a target must match its input frame for frame")
-                p = _judged(style_judge, content_judge, offered, out, style, content)
+                p = _judged(style_judges, content_judge, offered, out, style, content)
                 if p is None:
                     continue
                 if posture_slack is None or posture.keeps(stance, out, style, shifts, posture_slack):
@@ -240,7 +253,8 @@ def for_run(distil: str, folder: Path, fps: float, threads: int = 1, progress: b
     candidates = [Candidate.parse(c) for c in PAIRS_DEFAULTS["candidates"].split(",")]
     pairs = (make_pairs or make)(tuple(specs), candidates, default_styles(), fps, threads, progress,
                                  speeds=PAIRS_DEFAULTS["speeds"], mirror=PAIRS_DEFAULTS["mirror"],
-                                 parts=parts_folder(path), posture_slack=PAIRS_DEFAULTS["posture_slack"])
+                                 parts=parts_folder(path), posture_slack=PAIRS_DEFAULTS["posture_slack"],
+                                 agree=PAIRS_DEFAULTS["agree"])
     save_made(pairs, path)
     return str(path)
 
@@ -265,8 +279,9 @@ def _made_for(path: Path, specs: list[str]) -> bool:
             meta = json.loads(str(z["meta"]))
     except (OSError, ValueError, KeyError, EOFError):
         return False
-    return ((meta.get("version"), meta.get("clips"), meta.get("posture_slack"))
-            == (VERSION, specs, PAIRS_DEFAULTS["posture_slack"]))
+    agreeing = [Path(j).name for j in PAIRS_DEFAULTS["agree"]]
+    return ((meta.get("version"), meta.get("clips"), meta.get("posture_slack"), meta.get("judges", [])[1:-1])
+            == (VERSION, specs, PAIRS_DEFAULTS["posture_slack"], agreeing))
 
 
 def save(pairs: Pairs, path: Path) -> None:
