@@ -279,3 +279,7 @@ def test_bad_pairs_flags_are_one_line(capsys, tmp_path):
     assert "--posture-slack takes degrees" in capsys.readouterr().err
     assert main(["train", "pairs", "--clips", "cmu:07", "--candidates", "nope", "--out", str(tmp_path / "p.npz")]) == 2
     assert "nope" in capsys.readouterr().err
+    assert main(["train", "pairs", "--clips", "cmu:07", "--agree", "judge9_style.onnx", "--out", str(tmp_path / "p.npz")]) == 2
+    assert "judge9_style.onnx" in capsys.readouterr().err
+    assert main(["train", "pairs", "--clips", "cmu:07", "--agree", "judge2_style.onnx", "--out", str(tmp_path / "p.npz")]) == 2
+    assert "panel 2's" in capsys.readouterr().err
