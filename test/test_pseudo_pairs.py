@@ -196,7 +196,8 @@ def test_a_run_given_clips_makes_their_pairs_once_into_its_folder(pairs, tmp_pat
         assert agree == PAIRS_DEFAULTS["agree"]
         parts.mkdir(parents=True, exist_ok=True)  # what a making leaves until its file is written
         calls.append((specs, [str(c) for c in candidates], speeds, mirror))
-        return dataclasses.replace(pairs, meta={**pairs.meta, "clips": list(specs), "posture_slack": posture_slack})
+        return dataclasses.replace(pairs, meta={**pairs.meta, "clips": list(specs), "posture_slack": posture_slack,
+                                                "agree": list(agree)})
 
     folder = tmp_path / "most_5"
     first = pseudo_pairs.for_run("cmu:07_01", folder, 30.0, progress=False, make_pairs=made)
@@ -206,7 +207,7 @@ def test_a_run_given_clips_makes_their_pairs_once_into_its_folder(pairs, tmp_pat
     assert pseudo_pairs.for_run("cmu:07_01", folder, 30.0, make_pairs=made) == first and len(calls) == 1
     pseudo_pairs.for_run("cmu:07_01,cmu:02_01", folder, 30.0, progress=False, make_pairs=made)
     assert len(calls) == 2 and pseudo_pairs.load(first).meta["clips"] == ["cmu:07_01", "cmu:02_01"]
-    # pairs made with a posture gate (not the default) are made again
+    # pairs made with a posture gate or without the agreeing judges (not the default) are made again
     pseudo_pairs.save(dataclasses.replace(pairs, meta={**pairs.meta, "clips": ["cmu:07_01"]}), folder / "pairs.npz")
     pseudo_pairs.for_run("cmu:07_01", folder, 30.0, progress=False, make_pairs=made)
     assert len(calls) == 3 and pseudo_pairs.load(first).meta["posture_slack"] is None

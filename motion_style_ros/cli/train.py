@@ -66,7 +66,7 @@ def add_parser(subparsers):
     pairs.add_argument("--agree", default=",".join(PAIRS_DEFAULTS["agree"]), metavar="JUDGE,JUDGE",
                        help="more style judges (ONNX files or names in models/, such as panel 3's "
                             "judge3_style.onnx) that must recognise a target beside panel 1's; a target is "
-                            "then ranked by their mean probability (default: none)")
+                            "then ranked by their mean probability; '' for none (default: %(default)s)")
     pairs.add_argument("--threads", type=int, default=1, help="ONNX Runtime threads (default: 1)")
     pairs.add_argument("--out", required=True, help="the pairs file to write (.npz)")
     pairs.set_defaults(func=run_pairs)

@@ -11,9 +11,10 @@ from typing import NamedTuple
 DATA_DEFAULTS = {"datasets": "2", "speeds": "", "balance": "0", "exclude_styles": "", "neutral": "normal",
                  "unlabelled": "", "distil": ""}
 # what 'train pairs' and a run's '--distil CLIPS' make (training.pseudo_pairs): every shipped model
-# a candidate; every clip also at two speeds, and each of those mirrored; no posture gate
+# a candidate; every clip also at two speeds, and each of those mirrored; no posture gate; judge
+# panel 3 must recognise a target beside panel 1
 PAIRS_DEFAULTS = {"candidates": "recurrent,stgcn,most,saae:saae_model1.onnx,saae", "speeds": (0.8, 1.25),
-                  "mirror": True, "posture_slack": None, "agree": ()}
+                  "mirror": True, "posture_slack": None, "agree": ("judge3_style.onnx",)}
 
 
 class TrainCommand(NamedTuple):

@@ -232,8 +232,9 @@ def recipe(cfg: DataConfig, licence: str | None = None) -> dict:
                   if cfg.unlabelled else {})
     if cfg.distil:
         unlabelled["distilled"] = ("a supervised term towards pseudo-pairs: clips of other capture setups "
-                                   "stylized by the shipped backends, the best output judge panel 1 recognises "
-                                   "as the target kept (motion-style train pairs)")
+                                   "stylized by the shipped backends, the best output that the style judges of "
+                                   "clips.pairs.judges (panel 1's, and panel 3's where asked to agree) "
+                                   "recognise as the target kept (motion-style train pairs)")
     if cfg.data:
         return {"data": f"the user's labelled BVH folder {cfg.data}: 'train' takes (val takes for the val "
                         "figures; test takes never seen; split in its motion_style_split.csv)",

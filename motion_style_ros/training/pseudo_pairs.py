@@ -155,6 +155,7 @@ def make(specs: tuple[str, ...], candidates: list[Candidate], styles: list[str],
     meta = {"version": VERSION, "clips": list(specs), "speeds": list(speeds), "mirror": mirror,
             "candidates": list(stylizers), "styles": list(styles),
             "fps": fps, "judges": [j.model.path.name for j in (*style_judges, content_judge)],
+            "agree": [j.model.path.name for j in style_judges[1:]],
             "posture_slack": posture_slack, "sources": list(dict.fromkeys(name for name, _, _ in clips))}
 
     def one_clip(name: str, variant: str, motion: Motion) -> Pairs:
@@ -279,9 +280,8 @@ def _made_for(path: Path, specs: list[str]) -> bool:
             meta = json.loads(str(z["meta"]))
     except (OSError, ValueError, KeyError, EOFError):
         return False
-    agreeing = [Path(j).name for j in PAIRS_DEFAULTS["agree"]]
-    return ((meta.get("version"), meta.get("clips"), meta.get("posture_slack"), meta.get("judges", [])[1:-1])
-            == (VERSION, specs, PAIRS_DEFAULTS["posture_slack"], agreeing))
+    return ((meta.get("version"), meta.get("clips"), meta.get("posture_slack"), meta.get("agree", []))
+            == (VERSION, specs, PAIRS_DEFAULTS["posture_slack"], [Path(j).name for j in PAIRS_DEFAULTS["agree"]]))
 
 
 def save(pairs: Pairs, path: Path) -> None:
