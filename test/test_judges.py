@@ -63,6 +63,7 @@ def test_the_third_panel_sees_motion_but_not_posture_and_differs_from_both(all_j
         other = all_judges["style", panel].card["training"]["config"]
         assert third["seed"] != other["seed"] and set(third["inputs"]) < set(other["inputs"])
     assert third["select"]  # it guides choices, as panel 1 does; panel 2 never does
+    assert "reports nothing" in all_judges["style", 3].card["use"]
 
 
 def test_shipped_judges_are_small_and_carry_their_cards(all_judges, datasets):

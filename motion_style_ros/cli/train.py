@@ -32,8 +32,8 @@ def add_parser(subparsers):
                              "a CNN on velocities, best val epoch) may guide pseudo-pair choices beside "
                              "panel 1 (default: both)")
     judges.add_argument("--epochs", type=int, default=None,
-                        help="training epochs (default: the panel's, 15 and 8)")
-    judges.add_argument("--seed", type=int, default=None, help="random seed (default: the panel's, 0 and 1)")
+                        help="training epochs (default: the panel's; 15, 8 and 15)")
+    judges.add_argument("--seed", type=int, default=None, help="random seed (default: the panel's; 0, 1 and 2)")
     judges.add_argument("--threads", type=int, default=2,
                         help="torch CPU threads (default: 2)")
     judges.add_argument("--out", default=None,

@@ -85,6 +85,13 @@ def third_panel(kind: str, **changes) -> Config:
 
 
 PANELS = {1: Config, 2: second_panel, 3: third_panel}
+# what a judge's card says it is for: the evaluation panels, and panel 3, which only chooses
+USES = {
+    1: "Evaluation only: style/content recognition accuracy, FMD and content consistency of "
+       "stylizer outputs. Never use it as a training loss of a stylizer it judges.",
+    3: "Choosing pseudo-pair targets beside judge panel 1 ('motion-style train pairs --agree'); it "
+       "reports nothing. Never use it as a training loss of a stylizer.",
+}
 
 
 @dataclass
@@ -340,11 +347,9 @@ def _card(
     }
     return {
         "name": onnx_path.stem,
-        "task": f"classify the {cfg.kind} of a motion clip (an independent evaluation judge)",
-        "use": (
-            "Evaluation only: style/content recognition accuracy, FMD and content consistency of "
-            "stylizer outputs. Never use it as a training loss of a stylizer it judges."
-        ),
+        "task": f"classify the {cfg.kind} of a motion clip ("
+                + ("a judge that chooses distillation targets)" if cfg.panel == 3 else "an independent evaluation judge)"),
+        "use": USES.get(cfg.panel, USES[1]),
         "labels": labels,
         "inputs": {
             "features": f"(batch, time, {layout.size}) float32: motion_style_ros.core.features.encode() "
