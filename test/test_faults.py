@@ -1,8 +1,12 @@
 """Faults with real processes: the performer killed and started again mid-stream (the stylizer
 goes on by itself), the stylizer killed and started again (the recorder's bag stays whole and
-readable, the performer goes on), and a stream whose rate changes between 30, 60 and 120 Hz."""
+readable, the performer goes on), a stream whose rate changes between 30, 60 and 120 Hz, and a node
+whose teardown never returns."""
 
 import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -14,6 +18,7 @@ from sensor_msgs.msg import JointState
 from motion_style_ros.core.synthetic import synthetic_motion
 from motion_style_ros.io import bags
 from motion_style_ros.io.joint_state import JointStateLayout
+from motion_style_ros.nodes.process import TEARDOWN_SECONDS
 
 RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 LAYOUT = JointStateLayout.canonical()
@@ -107,3 +112,40 @@ def test_a_stream_switching_between_30_60_and_120_hz_is_stylized_throughout(mode
     finally:
         listener.close()
         stop(stylizer)
+
+
+STUCK_TEARDOWN = """
+import sys, time
+from motion_style_ros.nodes.process import run
+from motion_style_ros.nodes.synthetic_performer import SyntheticPerformer
+
+class Stuck(SyntheticPerformer):
+    def destroy_node(self):
+        print("tearing down", file=sys.stderr, flush=True)
+        time.sleep(120)  # a teardown that never returns
+
+sys.exit(run(Stuck, "stuck_performer"))
+"""
+
+
+def test_a_node_whose_teardown_hangs_after_ctrl_c_says_where_and_exits_1(ros_env):
+    """One Ctrl-C asks the node to stop; its teardown then never returns. Within the watchdog's
+    time (under launch's 5 s before SIGTERM) it writes its threads' stacks and exits with 1."""
+    proc = subprocess.Popen([sys.executable, "-c", STUCK_TEARDOWN, "--ros-args", "-r", "__ns:=/stuck"],
+                            env=ros_env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert "performing a synthetic walk" in proc.stderr.readline()  # built
+        time.sleep(1.0)  # spinning (a signal while it is built interrupts at once, another path)
+        proc.send_signal(signal.SIGINT)
+        start = time.monotonic()
+        err = proc.stderr.read()
+        code = proc.wait(30)
+        took = time.monotonic() - start
+    finally:
+        if proc.poll() is None:
+            kill(proc)
+    assert code == 1, err
+    assert TEARDOWN_SECONDS <= took < TEARDOWN_SECONDS + 4, took
+    assert err.startswith("tearing down") and "Timeout" in err, err
+    assert "in destroy_node" in err and "in _run" in err, err  # where it was stuck

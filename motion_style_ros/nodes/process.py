@@ -5,6 +5,7 @@ callback wrapper both executors take."""
 
 from __future__ import annotations
 
+import faulthandler
 import gc
 import inspect
 import os
@@ -28,6 +29,10 @@ RCLError = rclpy_implementation.RCLError
 EXECUTOR_VARIABLE = "MOTION_STYLE_EXECUTOR"
 EXECUTORS = ("events", "single_threaded")
 SPIN_SECONDS = 0.1  # a node checks whether it is done (or shut down) at least this often
+# How long a node's teardown may take once a signal asked it to stop, before its threads' stacks are
+# written to stderr and it exits with status 1: under launch's escalation to SIGTERM (5 s), so that a
+# teardown stuck in native code (where no Python signal handler runs) says where, and ends.
+TEARDOWN_SECONDS = 4.0
 
 
 def executor_choice() -> str:
@@ -103,7 +108,8 @@ class _Stop:
     only asks the loop to stop: the callback in progress finishes, the node is destroyed (its
     teardown may still log and publish, a recorder closes its bag) and only then is the context
     shut down. Before that (the node still being built) and on a second signal, it interrupts at
-    once (KeyboardInterrupt)."""
+    once (KeyboardInterrupt). The first signal also starts the teardown's watchdog
+    (:data:`TEARDOWN_SECONDS`)."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -111,6 +117,7 @@ class _Stop:
         self.requested = False
         self.started = False
         self._previous = {}
+        self._watching = False
 
     def __enter__(self) -> _Stop:
         if threading.current_thread() is not threading.main_thread():
@@ -120,10 +127,15 @@ class _Stop:
         return self
 
     def __exit__(self, *exc) -> None:
+        if self._watching:
+            faulthandler.cancel_dump_traceback_later()
         for number, previous in self._previous.items():
             signal.signal(number, previous)
 
     def _handle(self, number, frame) -> None:
+        if not self.requested:
+            faulthandler.dump_traceback_later(TEARDOWN_SECONDS, exit=True)
+            self._watching = True
         if self.started and not self.requested:
             self.requested = True
             return
@@ -149,7 +161,7 @@ def _run(make_node: Callable[[], Node], name: str, args, stop: _Stop) -> int:
     except KeyboardInterrupt:
         rclpy.try_shutdown()
         return 0
-    node = None
+    node = spinner = None
     try:
         node = make_node()
         # What the node built to start with (rclpy, ONNX Runtime, the models) lives as long as the
@@ -169,6 +181,10 @@ def _run(make_node: Callable[[], Node], name: str, args, stop: _Stop) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        # The executor lets go of the node's entities before they are destroyed, and both before the
+        # context: the order rclpy's own executors assume (the events executor holds each one).
+        if spinner is not None:
+            spinner.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
