@@ -182,12 +182,17 @@ def test_the_style_adversary_learns_the_input_style_and_the_generator_gets_its_r
     assert all(torch.equal(a[k], b[k]) for k in a)
 
 
-def test_a_negative_style_adversary_weight_is_one_line_before_any_data_is_read(tmp_path):
+@pytest.mark.parametrize("flags, reason", [
+    (["--style-adversary", "-1"], "--style-adversary must be 0 or more, got -1"),
+    (["--distil-weight", "0.5"], "--distil-weight weighs the pairs of --distil: give --distil too"),
+    (["--distil-weight", "-2", "--distil", "pairs.npz"], "--distil-weight must be 0 or more, got -2"),
+])
+def test_a_bad_training_flag_is_one_line_before_any_data_is_read(tmp_path, flags, reason):
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "train", "recurrent", "--style-adversary",
-                          "-1", "--out", str(tmp_path)], check=False, capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-m", "motion_style_ros.cli.main", "train", "recurrent", *flags,
+                          "--out", str(tmp_path)], check=False, capture_output=True, text=True)
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
-    assert "--style-adversary must be 0 or more, got -1" in out.stderr
+    assert reason in out.stderr
     assert not any(tmp_path.iterdir())

@@ -163,6 +163,9 @@ def _data_flags(parser) -> None:
                              "train pairs' wrote, or clip specs (cmu:07,cmu:02_01) whose pairs are made as "
                              "'train pairs' makes them, once, into the checkpoint folder; 'eval --unseen' then "
                              "leaves those clips out (default: none)")
+    parser.add_argument("--distil-weight", type=float, default=None, metavar="W",
+                        help="weight of the pseudo-pairs' term beside the trainer's own losses (with --distil; "
+                             "default: the trainer's Config, 1)")
 
 
 def run_judges(args) -> int:

@@ -105,6 +105,11 @@ def stylizer_run(args, module: str, unlabelled: str | None = None, check=None):
         check()
     out = output(args)
     fields, recipe = data_fields(args)
+    weight, given = model_flags(args, {"distil_weight": "w_distil"})
+    if weight and not fields["distil"]:
+        raise MotionStyleError("--distil-weight weighs the pairs of --distil: give --distil too")
+    fields.update(weight)
+    recipe += given
     if unlabelled and fields["unlabelled"]:
         raise MotionStyleError(f"--unlabelled: {unlabelled}; 'train recurrent' does")
     if fields["distil"]:
