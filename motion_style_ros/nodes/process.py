@@ -117,7 +117,6 @@ class _Stop:
         self.requested = False
         self.started = False
         self._previous = {}
-        self._watching = False
 
     def __enter__(self) -> _Stop:
         if threading.current_thread() is not threading.main_thread():
@@ -127,19 +126,17 @@ class _Stop:
         return self
 
     def __exit__(self, *exc) -> None:
-        if self._watching:
+        if self.requested:  # only a signal sets it, and that signal started the watchdog
             faulthandler.cancel_dump_traceback_later()
         for number, previous in self._previous.items():
             signal.signal(number, previous)
 
     def _handle(self, number, frame) -> None:
-        if not self.requested:
+        first, self.requested = not self.requested, True
+        if first:
             faulthandler.dump_traceback_later(TEARDOWN_SECONDS, exit=True)
-            self._watching = True
-        if self.started and not self.requested:
-            self.requested = True
-            return
-        self.requested = True
+            if self.started:
+                return
         raise KeyboardInterrupt
 
 
