@@ -132,6 +132,14 @@ def test_cli_help_exits_0():
     assert "demo" in proc.stdout and "version" in proc.stdout
 
 
+def test_style_add_help_says_enrolment_is_experimental_with_its_figure():
+    proc = subprocess.run(motion_style_command() + ["style", "add", "--help"], capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    text = " ".join(proc.stdout.split())
+    assert "Experimental:" in text and "recognised on 0-10 % of outputs" in text
+
+
 def test_cli_usage_error_is_one_line_exit_2():
     proc = subprocess.run(motion_style_command() + ["demo", "--bogus"], capture_output=True,
                           text=True, timeout=60)

@@ -1,6 +1,14 @@
 """``motion-style style``: enrol a style of your own from a few clips into a model's style bank."""
 
 
+# Said wherever enrolment is offered (``style --help`` and ``style add --help``); the figures are
+# docs/models.md's "Styles enrolled from a few clips".
+EXPERIMENTAL = ("Experimental: no shipped model renders a style it was not trained on from a few clips "
+                "yet ('proud', left out of training and enrolled from 4 takes, was recognised on 0-10 % "
+                "of outputs by both judge panels, where its real takes are recognised; motion-style eval "
+                "--stylizer stgcn --enrol proud; docs/models.md).")
+
+
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "style", help="enrol, list and remove your own styles (stgcn and most style banks)",
@@ -9,16 +17,12 @@ def add_parser(subparsers):
                     "(the clips' own style features), averaged over the clips. It is a JSON file "
                     "beside the model (stgcn_styles.json, most_styles.json) that the sessions and "
                     "the stylizer node read, so target_style accepts the new name. Clips are BVH "
-                    "files of any humanoid rig the package retargets. Experimental: neither shipped "
-                    "model renders a style it was not trained on from a few clips yet ('proud' "
-                    "enrolled from 4 takes was recognised on 0-4 % of outputs by both judge panels, "
-                    "where its real takes are recognised; motion-style eval --stylizer stgcn --enrol "
-                    "proud; docs/models.md).",
+                    "files of any humanoid rig the package retargets. " + EXPERIMENTAL,
     )
     actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     add = actions.add_parser("add", help="enrol a style from clips of it (experimental)",
-                             description="Enrol NAME from the clips (3-5 clips of a few seconds each "
-                                         "work; every clip must show the style).")
+                             description="Enrol NAME from the clips (3-5 clips of a few seconds each; "
+                                         "every clip must show the style). " + EXPERIMENTAL)
     add.add_argument("name", metavar="NAME", help="the new style's name (lowercase letters, digits, - and _)")
     add.add_argument("clips", metavar="CLIP.bvh", nargs="+", help="clips of the style")
     add.add_argument("--head", default=None, metavar="STYLE",
